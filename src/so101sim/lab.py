@@ -1,0 +1,127 @@
+"""The lab handout's helpers, with the handout's names and arguments, working correctly.
+
+A student's ``so101_mujoco_utils`` script runs on these unchanged::
+
+    from so101sim.lab import set_initial_pose, move_to_pose, hold_position
+
+What differs from the handout, and why:
+
+* **Units.** Degrees are ``rad * 180 / π`` with the exact π (the handout uses 3.14159). The
+  gripper's 0–100 maps linearly onto the gripper joint's range (0 = closed = lower limit,
+  100 = open = upper limit); the handout's ``qpos * 100 / π`` puts 100 at π rad, far outside
+  the joint's −10°..100° range.
+* **Time.** The handout times moves with the wall clock while stepping as fast as it can, so a
+  "2 s" move runs however many physics steps the machine manages in 2 wall seconds (about
+  190,000 steps, ~380 simulated seconds, on a 2-core laptop) and differs from run to run.
+  Here a move of T seconds is exactly ``round(T / timestep)`` physics steps (1000 for 2 s at
+  0.002 s): deterministic. With a viewer it is paced to the wall clock in real time by
+  sleeping to absolute deadlines, so it neither races ahead nor drifts.
+* **Holding.** The handout's ``hold_position`` re-reads the measured pose, which sags a little
+  under gravity, and commands that, so the arm creeps down the longer it holds. Here it holds
+  the last *commanded* target; before any command it holds the pose it finds.
+* **Validation.** Unknown or missing joint names, non-numeric or non-finite values, targets
+  outside the joint limits and durations ≤ 0 raise a clear :class:`~so101sim.So101SimError`
+  before anything moves.
+
+``viewer`` may be ``None`` to run headless.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from .model import arm_index, arm_units
+from .motion import SegmentResult, hold, move
+from .simulation import set_commanded_target, viewer_observer
+from .units import JOINT_NAMES, Pose, default_units
+
+__all__ = [
+    "convert_to_dictionary",
+    "convert_to_list",
+    "hold_position",
+    "move_to_pose",
+    "send_position_command",
+    "set_initial_pose",
+]
+
+
+def convert_to_dictionary(qpos: Sequence[float] | np.ndarray) -> dict[str, float]:
+    """Joint angles in radians (the first six values of ``qpos``) -> the arm's units.
+
+    Body joints in degrees (exact π), gripper on 0–100 over the gripper joint's range. The
+    handout's ``qpos[5] * 100 / 3.14159`` for the gripper was wrong (see the module docs).
+    """
+    q = np.asarray(qpos, dtype=float)[: len(JOINT_NAMES)]
+    return default_units().array_to_pose(default_units().from_radians(q))
+
+
+def convert_to_list(position_dict: Pose) -> list[float]:
+    """A pose in the arm's units -> six joint angles in radians, in the arm's joint order.
+
+    The inverse of :func:`convert_to_dictionary`. Raises JointNameError for unknown or missing
+    joints and JointValueError for values that are not finite numbers.
+    """
+    units = default_units()
+    return units.to_radians(units.pose_to_array(position_dict, check_limits=False)).tolist()
+
+
+def _observers(viewer: Any) -> list[Any]:
+    return [] if viewer is None else [viewer_observer(viewer)]
+
+
+def set_initial_pose(d: mujoco.MjData, position_dict: Pose) -> None:
+    """Place the arm at ``position_dict`` (at rest) and command it to stay there.
+
+    Unlike the handout, this also sets the position targets, so the arm holds the pose rather
+    than falling towards the targets' default of 0 on the first step.
+    """
+    m = d.model
+    idx = arm_index(m)
+    q = arm_units(m).to_radians(arm_units(m).pose_to_array(position_dict))
+    d.qpos[idx.qpos] = q
+    d.qvel[idx.dof] = 0.0
+    set_commanded_target(m, d, q)
+    mujoco.mj_forward(m, d)
+
+
+def send_position_command(d: mujoco.MjData, position_dict: Pose) -> None:
+    """Set the position actuators' targets to ``position_dict`` (all six joints).
+
+    MuJoCo's position actuators then pull each joint towards its target with the model's PD
+    gains. Raises before changing anything if a name, value or limit is wrong.
+    """
+    m = d.model
+    units = arm_units(m)
+    set_commanded_target(m, d, units.to_radians(units.pose_to_array(position_dict)))
+
+
+def move_to_pose(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    viewer: Any,
+    desired_position: Pose,
+    duration: float,
+) -> SegmentResult:
+    """Move in a straight line (per joint) from the last commanded target to
+    ``desired_position`` over ``duration`` seconds of simulated time.
+
+    Exactly ``round(duration / timestep)`` physics steps; with a ``viewer``, paced to the wall
+    clock. Returns the move's :class:`~so101sim.motion.SegmentResult` (the handout returned
+    nothing; ignoring the result is fine). If the viewer is closed, returns early.
+    """
+    return move(m, d, desired_position, duration, observers=_observers(viewer), phase="move")
+
+
+def hold_position(
+    m: mujoco.MjModel, d: mujoco.MjData, viewer: Any, duration: float
+) -> SegmentResult:
+    """Hold the last commanded target for ``duration`` seconds of simulated time.
+
+    Before any command, holds the pose it finds. (The handout re-read the sagging measured pose
+    and let the arm creep under gravity.)
+    """
+    return hold(m, d, duration, observers=_observers(viewer), phase="hold")

@@ -1,0 +1,266 @@
+"""The arm's own units, joint names and named poses.
+
+The real SO-101 (driven through LeRobot, calibrated in degrees) reports:
+
+* the five body joints in **degrees**, 0 being the middle of the joint's range (the model's
+  "new calibration" puts the joint zero there too, so degrees are exactly ``rad * 180 / π``);
+* the **gripper on 0–100**: 0 fully closed, 100 fully open.
+
+MuJoCo works in radians. The gripper's 0–100 maps *linearly* onto the gripper joint's range:
+0 is the lower limit (closed, −10°), 100 the upper limit (open, 100°). The lab handout's
+``qpos * 100 / π`` is wrong: it would put "100" at π rad, far outside that joint's −10°..100°
+range, and "0" at 0 rad rather than at the closed stop.
+
+At the edges, poses are plain dicts keyed by joint name (``"shoulder_pan"``) or by LeRobot's
+keys (``"shoulder_pan.pos"``); inside, they are NumPy arrays in :data:`JOINT_NAMES` order.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from .errors import JointLimitError, JointNameError, JointValueError
+
+JOINT_NAMES: tuple[str, ...] = (
+    "shoulder_pan",
+    "shoulder_lift",
+    "elbow_flex",
+    "wrist_flex",
+    "wrist_roll",
+    "gripper",
+)
+"""The six joints, in the real arm's (and the model's) order."""
+
+GRIPPER = "gripper"
+GRIPPER_INDEX = JOINT_NAMES.index(GRIPPER)
+BODY_JOINTS: tuple[str, ...] = JOINT_NAMES[:GRIPPER_INDEX]
+LEROBOT_SUFFIX = ".pos"
+
+Pose = Mapping[str, float]
+"""A pose at the edges: joint name (or ``name.pos``) -> value in the arm's units."""
+
+STARTING_POSE: dict[str, float] = {
+    "shoulder_pan": 0.0,
+    "shoulder_lift": -98.0,
+    "elbow_flex": 88.0,
+    "wrist_flex": 60.0,
+    "wrist_roll": 0.0,
+    "gripper": 0.0,
+}
+"""The folded rest pose the real arm sits in when switched off.
+
+Upper arm laid back against its stop (2° short of the −100° limit), forearm folded over it,
+wrist tipped down, gripper closed. Every joint is inside its limits and no two parts of the
+arm, nor the arm and the floor, come within 3 mm of each other in the shipped model.
+"""
+
+ZERO_POSE: dict[str, float] = dict.fromkeys(JOINT_NAMES, 0.0)
+"""Every joint at 0: body joints mid-range (upper arm up, forearm forward), gripper closed."""
+
+
+def joint_unit(name: str) -> str:
+    """The unit a joint is expressed in: ``"deg"`` or ``"%"`` (the gripper's 0–100)."""
+    return "%" if name == GRIPPER else "deg"
+
+
+def _fmt(name: str, value: float) -> str:
+    return f"{value:g}" if name == GRIPPER else f"{value:g}°"
+
+
+@dataclass(frozen=True)
+class ArmUnits:
+    """Conversions between the arm's units and a model's radians, for one set of joint limits.
+
+    ``lower``/``upper`` are the joint limits in radians, in :data:`JOINT_NAMES` order.
+    Conversions are affine, vectorised, and work on arrays of shape ``(..., 6)``.
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+
+    @property
+    def scale(self) -> np.ndarray:
+        """Radians per arm unit, per joint."""
+        s = np.full(len(JOINT_NAMES), math.pi / 180.0)
+        s[GRIPPER_INDEX] = (self.upper[GRIPPER_INDEX] - self.lower[GRIPPER_INDEX]) / 100.0
+        return s
+
+    @property
+    def offset(self) -> np.ndarray:
+        """Radians at arm value 0, per joint."""
+        o = np.zeros(len(JOINT_NAMES))
+        o[GRIPPER_INDEX] = self.lower[GRIPPER_INDEX]
+        return o
+
+    def to_radians(self, values: np.ndarray) -> np.ndarray:
+        """Arm units (degrees, gripper 0–100) -> joint angles in radians."""
+        v = np.asarray(values, dtype=float)
+        out = np.radians(v)
+        out[..., GRIPPER_INDEX] = (
+            self.lower[GRIPPER_INDEX] + v[..., GRIPPER_INDEX] * self.scale[GRIPPER_INDEX]
+        )
+        return out
+
+    def from_radians(self, q: np.ndarray) -> np.ndarray:
+        """Joint angles in radians -> arm units (degrees, gripper 0–100)."""
+        q = np.asarray(q, dtype=float)
+        out = np.degrees(q)
+        out[..., GRIPPER_INDEX] = (q[..., GRIPPER_INDEX] - self.lower[GRIPPER_INDEX]) / self.scale[
+            GRIPPER_INDEX
+        ]
+        return out
+
+    @property
+    def limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) limits in the arm's units: degrees, and 0..100 for the gripper."""
+        return self.from_radians(self.lower), self.from_radians(self.upper)
+
+    def limits_dict(self) -> dict[str, tuple[float, float]]:
+        """Joint name -> (lower, upper) in the arm's units."""
+        lo, hi = self.limits
+        return {n: (float(lo[i]), float(hi[i])) for i, n in enumerate(JOINT_NAMES)}
+
+    def check_limits(self, values: np.ndarray, *, clip: bool = False) -> np.ndarray:
+        """Return ``values`` (arm units), clipped to the limits if ``clip``, else raise.
+
+        Raises:
+            JointLimitError: a value lies outside its joint's limits and ``clip`` is False.
+        """
+        lo, hi = self.limits
+        tol = 1e-9
+        if clip:
+            return np.clip(values, lo, hi)
+        bad = np.flatnonzero((values < lo - tol) | (values > hi + tol))
+        if bad.size:
+            i = int(bad[0])
+            n = JOINT_NAMES[i]
+            raise JointLimitError(
+                f"{n} = {_fmt(n, values[i])} is outside the joint's limits "
+                f"{_fmt(n, lo[i])}..{_fmt(n, hi[i])}; choose a target inside them, or pass "
+                "clip=True to clip targets to the limits instead"
+            )
+        return np.clip(values, lo, hi)  # only rounding-level corrections remain
+
+    def pose_to_array(
+        self,
+        pose: Pose,
+        *,
+        base: np.ndarray | None = None,
+        clip: bool = False,
+        check_limits: bool = True,
+    ) -> np.ndarray:
+        """Validate a pose dict and return it as an array in arm units, :data:`JOINT_NAMES` order.
+
+        Keys may be joint names or LeRobot keys (``"elbow_flex.pos"``). With ``base`` (an array
+        in arm units), missing joints keep the base's value; without it all six are required.
+
+        Raises:
+            JointNameError: unknown, duplicated or (without ``base``) missing joint names.
+            JointValueError: a value that is not a finite real number.
+            JointLimitError: a value outside the joint's limits (unless ``clip``).
+        """
+        values = parse_pose(pose, partial=base is not None)
+        out = np.array(base, dtype=float) if base is not None else np.empty(len(JOINT_NAMES))
+        for name, v in values.items():
+            out[JOINT_NAMES.index(name)] = v
+        return self.check_limits(out, clip=clip) if check_limits else out
+
+    def array_to_pose(self, values: np.ndarray) -> dict[str, float]:
+        """An array in arm units -> ``{joint name: value}``."""
+        return {n: float(values[i]) for i, n in enumerate(JOINT_NAMES)}
+
+
+def normalize_joint_name(key: object) -> str:
+    """``"shoulder_pan"`` or LeRobot's ``"shoulder_pan.pos"`` -> ``"shoulder_pan"``.
+
+    Raises:
+        JointNameError: not one of the six joints (the message lists them).
+    """
+    if isinstance(key, str):
+        name = key[: -len(LEROBOT_SUFFIX)] if key.endswith(LEROBOT_SUFFIX) else key
+        if name in JOINT_NAMES:
+            return name
+    raise JointNameError(
+        f"unknown joint {key!r}; valid joints are {', '.join(JOINT_NAMES)} "
+        f"(LeRobot's keys such as 'shoulder_pan.pos' are accepted too)"
+    )
+
+
+def check_number(name: str, value: object) -> float:
+    """Return ``value`` as a float if it is a finite real number, else raise JointValueError."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise JointValueError(
+            f"{name} = {value!r} is not a number; expected a finite value in "
+            f"{'0..100' if name == GRIPPER else 'degrees'}"
+        )
+    v = float(value)
+    if not math.isfinite(v):
+        raise JointValueError(f"{name} = {v} is not finite; expected a finite number")
+    return v
+
+
+def parse_pose(pose: Pose, *, partial: bool = False) -> dict[str, float]:
+    """Check a pose dict's names and values (not limits) and return ``{joint: float}``.
+
+    Raises:
+        JointNameError: ``pose`` is not a dict, or names unknown/duplicated/missing joints.
+        JointValueError: a value is not a finite real number.
+    """
+    if not isinstance(pose, Mapping):
+        raise JointNameError(
+            f"a pose must be a dict keyed by joint name, got {type(pose).__name__}; "
+            f"expected keys {', '.join(JOINT_NAMES)}"
+        )
+    out: dict[str, float] = {}
+    for key, value in pose.items():
+        name = normalize_joint_name(key)
+        if name in out:
+            raise JointNameError(f"joint {name!r} is given twice (as {name!r} and {name}.pos)")
+        out[name] = check_number(name, value)
+    missing = [n for n in JOINT_NAMES if n not in out]
+    if missing and not partial:
+        raise JointNameError(
+            f"pose is missing {', '.join(missing)}; a pose needs all six joints: "
+            f"{', '.join(JOINT_NAMES)}"
+        )
+    return out
+
+
+@lru_cache(maxsize=1)
+def default_units() -> ArmUnits:
+    """Units for the shipped model, read from its joint ranges (parsed, not compiled)."""
+    import mujoco
+
+    from .model import model_dir
+
+    spec = mujoco.MjSpec.from_file(str(model_dir() / "so101_new_calib.xml"))
+    ranges = {j.name: np.array(j.range, dtype=float) for j in spec.joints}
+    lower = np.array([ranges[n][0] for n in JOINT_NAMES])
+    upper = np.array([ranges[n][1] for n in JOINT_NAMES])
+    return ArmUnits(lower=lower, upper=upper)
+
+
+def units_for(lower: Iterable[float], upper: Iterable[float]) -> ArmUnits:
+    """Units for a model with these joint limits (radians, :data:`JOINT_NAMES` order)."""
+    return ArmUnits(lower=np.asarray(list(lower), float), upper=np.asarray(list(upper), float))
+
+
+def to_lerobot(pose: Pose) -> dict[str, float]:
+    """``{"shoulder_pan": v}`` -> LeRobot's ``{"shoulder_pan.pos": v}``."""
+    return {f"{normalize_joint_name(k)}{LEROBOT_SUFFIX}": float(v) for k, v in pose.items()}
+
+
+def format_pose(pose: Pose, digits: int = 2) -> str:
+    """A pose as one readable line: ``shoulder_pan=0.00° ... gripper=0.00``."""
+    parts = []
+    for k, v in pose.items():
+        n = normalize_joint_name(k)
+        v = round(float(v), digits) + 0.0  # no "-0.00"
+        parts.append(f"{n}={v:.{digits}f}{'' if n == GRIPPER else '°'}")
+    return " ".join(parts)
