@@ -60,6 +60,11 @@ wrist tipped down, gripper closed. Every joint is inside its limits and no two p
 arm, nor the arm and the floor, come within 3 mm of each other in the shipped model.
 """
 
+LIMIT_TOLERANCE = 0.5
+"""Arm units (degrees, or gripper units) a target may lie beyond a limit and still be accepted,
+clipped onto the limit. A joint resting on its stop reads a hair past it (the gripper closed
+reads about -0.00002), and sending a measured pose back as a command must not fail."""
+
 ZERO_POSE: dict[str, float] = dict.fromkeys(JOINT_NAMES, 0.0)
 """Every joint at 0: body joints mid-range (upper arm up, forearm forward), gripper closed."""
 
@@ -129,11 +134,13 @@ class ArmUnits:
     def check_limits(self, values: np.ndarray, *, clip: bool = False) -> np.ndarray:
         """Return ``values`` (arm units), clipped to the limits if ``clip``, else raise.
 
+        Values within :data:`LIMIT_TOLERANCE` of a limit are clipped onto it without error.
+
         Raises:
             JointLimitError: a value lies outside its joint's limits and ``clip`` is False.
         """
         lo, hi = self.limits
-        tol = 1e-9
+        tol = LIMIT_TOLERANCE
         if clip:
             return np.clip(values, lo, hi)
         bad = np.flatnonzero((values < lo - tol) | (values > hi + tol))
@@ -145,7 +152,7 @@ class ArmUnits:
                 f"{_fmt(n, lo[i])}..{_fmt(n, hi[i])}; choose a target inside them, or pass "
                 "clip=True to clip targets to the limits instead"
             )
-        return np.clip(values, lo, hi)  # only rounding-level corrections remain
+        return np.clip(values, lo, hi)  # only corrections within the tolerance remain
 
     def pose_to_array(
         self,

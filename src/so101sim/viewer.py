@@ -11,6 +11,7 @@ import contextlib
 import logging
 import os
 import sys
+import threading
 from collections.abc import Iterator
 from typing import Any
 
@@ -22,8 +23,8 @@ log = logging.getLogger(__name__)
 
 SCENE_AZIMUTH = 160.0
 SCENE_ELEVATION = -20.0
-ARM_LOOKAT = (0.12, 0.0, 0.14)
-ARM_DISTANCE = 0.75
+ARM_LOOKAT = (0.14, 0.0, 0.15)
+ARM_DISTANCE = 0.6
 
 
 def has_display() -> bool:
@@ -80,6 +81,7 @@ def open_viewer(
         )
     import mujoco.viewer
 
+    before = set(threading.enumerate())
     try:
         handle = mujoco.viewer.launch_passive(
             m, d, key_callback=key_callback, show_left_ui=show_ui, show_right_ui=show_ui
@@ -88,6 +90,7 @@ def open_viewer(
         if sys.platform == "darwin":
             raise ViewerError(MACOS_MESSAGE) from exc
         raise ViewerError(f"the viewer could not be opened: {exc}") from exc
+    ui_threads = [t for t in threading.enumerate() if t not in before]
     try:
         with handle.lock():
             frame_arm(handle.cam)
@@ -95,6 +98,11 @@ def open_viewer(
         yield handle
     finally:
         handle.close()
+        # The viewer's render thread is a daemon: if the interpreter exits (and GLFW is
+        # terminated) while it is still tearing its window down, the process segfaults.
+        # Wait for it to finish so that closing is clean.
+        for t in ui_threads:
+            t.join(timeout=10.0)
         log.debug("viewer closed")
 
 

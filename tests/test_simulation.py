@@ -1,0 +1,192 @@
+import copy
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from so101sim import Simulation
+from so101sim.errors import JointLimitError, SimulationDivergedError
+from so101sim.model import load_model
+from so101sim.simulation import Observer, Pacer, ViewerObserver, advance
+from so101sim.units import STARTING_POSE, ZERO_POSE
+
+
+class FakeClock:
+    """A wall clock that only moves when the code under test sleeps (or work is simulated)."""
+
+    def __init__(self) -> None:
+        self.now = 100.0
+        self.sleeps: list[float] = []
+
+    def __call__(self) -> float:
+        return self.now
+
+    def sleep(self, s: float) -> None:
+        self.sleeps.append(s)
+        self.now += s
+
+
+class FakeViewer:
+    def __init__(self, close_after: int | None = None) -> None:
+        self.syncs = 0
+        self.close_after = close_after
+
+    def is_running(self) -> bool:
+        return self.close_after is None or self.syncs < self.close_after
+
+    def sync(self) -> None:
+        self.syncs += 1
+
+
+def test_new_simulation_is_at_rest_pose(sim):
+    assert sim.time == 0.0
+    assert sim.timestep == 0.002
+    for n, v in STARTING_POSE.items():
+        assert sim.pose()[n] == pytest.approx(v, abs=1e-9)
+    assert sim.commanded() == pytest.approx(STARTING_POSE)
+
+
+def test_two_second_move_is_1000_steps(sim):
+    r = sim.move_to(ZERO_POSE, 2.0)
+    assert r.steps == 1000
+    assert sim.time == pytest.approx(2.0, abs=1e-9)
+
+
+def test_steps_round_to_the_nearest_step(sim):
+    assert sim.hold(0.0031).steps == 2
+    assert sim.hold(0.0001).steps == 1  # never zero steps for a positive duration
+
+
+def test_rollout_and_python_loop_are_bit_identical():
+    m = load_model()
+    targets = np.linspace(-0.5, 0.5, 300)[:, None] * np.ones(6)
+    targets[:, 5] = 0.0
+
+    class EveryStep(Observer):  # forces one-step blocks, i.e. the Python loop
+        def __init__(self):
+            self.t = 0.0
+
+        def next_time(self):
+            return self.t
+
+        def on_time(self, m, d):
+            self.t = d.time + 1e-6
+            return True
+
+    d1, d2 = mujoco.MjData(m), mujoco.MjData(m)
+    tr1 = advance(m, d1, targets)
+    tr2 = advance(m, d2, targets, [EveryStep()])
+    np.testing.assert_array_equal(tr1.qpos, tr2.qpos)
+    np.testing.assert_array_equal(tr1.time, tr2.time)
+    np.testing.assert_array_equal(d1.qvel, d2.qvel)
+    np.testing.assert_array_equal(d1.qacc_warmstart, d2.qacc_warmstart)
+
+
+def test_trace_records_each_step(sim):
+    tr = sim.step(10)
+    assert len(tr) == 10
+    np.testing.assert_allclose(tr.time, 0.002 * np.arange(1, 11))
+    assert tr.completed
+
+
+def test_pacer_sleeps_to_absolute_deadlines_without_drift():
+    clock = FakeClock()
+    pacer = Pacer(clock=clock, sleep=clock.sleep)
+    pacer.wait(0.0)  # anchors
+    for k in range(1, 601):
+        clock.now += 0.003  # work takes 3 ms of wall time per 1/60 s frame
+        pacer.wait(k / 60)
+        # after each wait, the wall clock is exactly on the frame's deadline
+        assert clock.now == pytest.approx(100.0 + k / 60, abs=1e-9)
+    assert len(clock.sleeps) == 600
+    assert clock.sleeps[0] == pytest.approx(1 / 60 - 0.003)
+
+
+def test_pacer_speed_and_catching_up():
+    clock = FakeClock()
+    pacer = Pacer(speed=2.0, clock=clock, sleep=clock.sleep, max_lag=0.25)
+    pacer.wait(1.0)
+    pacer.wait(2.0)  # 1 s of sim at 2x = 0.5 s of wall time
+    assert clock.now == pytest.approx(100.5)
+    clock.now += 0.1  # fell behind by less than max_lag: no sleep, no re-anchor
+    pacer.wait(2.1)
+    assert clock.now == pytest.approx(100.6) and pacer.lag_events == 0
+    clock.now += 5.0  # a long stall: re-anchor instead of racing
+    pacer.wait(2.2)
+    assert pacer.lag_events == 1
+    pacer.wait(3.2)
+    assert clock.now == pytest.approx(105.6 + 0.5)
+
+
+def test_pacer_rejects_bad_speed():
+    with pytest.raises(ValueError):
+        Pacer(0.0)
+
+
+def test_viewer_is_synced_at_its_rate_and_paced_by_sim_time(sim):
+    clock = FakeClock()
+    viewer = FakeViewer()
+    obs = ViewerObserver(viewer, Pacer(clock=clock, sleep=clock.sleep), fps=50)
+    sim.observers.append(obs)
+    r = sim.move_to(ZERO_POSE, 1.0)
+    assert r.steps == 500 and r.completed
+    # a sync at t=0 and one every 1/50 s of simulated time after it
+    assert viewer.syncs == 51
+    # the fake wall clock advanced by exactly the simulated time: real time, no drift
+    assert clock.now == pytest.approx(100.0 + 1.0, abs=1e-9)
+
+
+def test_closing_the_viewer_ends_the_run(sim):
+    viewer = FakeViewer(close_after=10)
+    clock = FakeClock()
+    sim.observers.append(ViewerObserver(viewer, Pacer(clock=clock, sleep=clock.sleep), fps=50))
+    r = sim.move_to(ZERO_POSE, 2.0)
+    assert not r.completed
+    assert r.steps < 1000
+    assert sim.time == pytest.approx(r.end_time)
+
+
+def test_set_pose_and_command(sim):
+    sim.set_pose(ZERO_POSE)
+    assert sim.pose() == pytest.approx(ZERO_POSE, abs=1e-12)
+    full = sim.command({"elbow_flex.pos": 10.0})
+    assert full["elbow_flex"] == 10.0 and full["shoulder_lift"] == 0.0
+    sim.step(500)
+    assert sim.pose()["elbow_flex"] == pytest.approx(10.0, abs=0.5)
+
+
+def test_bad_target_moves_nothing(sim):
+    before = sim.data.qpos.copy(), sim.data.ctrl.copy(), sim.time
+    with pytest.raises(JointLimitError):
+        sim.move_to({**ZERO_POSE, "wrist_flex": 200}, 1.0)
+    with pytest.raises(JointLimitError):
+        sim.command({"wrist_flex": -200})
+    np.testing.assert_array_equal(sim.data.qpos, before[0])
+    np.testing.assert_array_equal(sim.data.ctrl, before[1])
+    assert sim.time == before[2]
+
+
+def test_reset(sim):
+    sim.move_to(ZERO_POSE, 0.5)
+    sim.reset()
+    assert sim.time == 0.0
+    assert sim.pose() == pytest.approx(STARTING_POSE, abs=1e-9)
+
+
+def test_divergence_is_reported():
+    m = copy.copy(load_model())
+    m.actuator_gainprm[:, 0] = 1e9  # absurd gains: the explicit integrator blows up
+    m.actuator_biasprm[:, 1] = -1e9
+    m.actuator_forcerange[:] = [-1e12, 1e12]
+    sim = Simulation(m)
+    with pytest.raises(SimulationDivergedError, match="diverged"):
+        sim.move_to(ZERO_POSE, 1.0)
+
+
+def test_model_path_is_accepted(tmp_path):
+    from so101sim.model import scene_path
+
+    sim = Simulation(scene_path())
+    assert sim.model is load_model()
+    assert math.isclose(sim.pose()["shoulder_lift"], -98.0)

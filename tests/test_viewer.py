@@ -1,0 +1,138 @@
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+from so101sim import viewer
+from so101sim.errors import ViewerError
+
+
+def test_has_display_follows_the_environment(monkeypatch):
+    monkeypatch.setattr(sys, "platform", "linux")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert not viewer.has_display()
+    monkeypatch.setenv("DISPLAY", ":0")
+    assert viewer.has_display()
+
+
+def test_no_display_is_a_clear_error(monkeypatch, sim):
+    monkeypatch.setattr(sys, "platform", "linux")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    with pytest.raises(ViewerError, match="--headless"), viewer.open_viewer(sim.model, sim.data):
+        pass
+
+
+def test_macos_without_mjpython_says_exactly_what_to_do(monkeypatch, sim):
+    monkeypatch.setattr(sys, "platform", "darwin")
+    monkeypatch.setattr(sys, "executable", "/usr/local/bin/python3")
+    monkeypatch.delenv("MJPYTHON_BIN", raising=False)
+    with pytest.raises(ViewerError, match="mjpython -m so101sim run"):  # noqa: SIM117
+        with viewer.open_viewer(sim.model, sim.data):
+            pass
+    monkeypatch.setattr(sys, "executable", "/usr/local/bin/mjpython")
+    assert not viewer.on_macos_without_mjpython()
+
+
+def test_frame_arm_uses_the_scenes_view():
+    import mujoco
+
+    cam = mujoco.MjvCamera()
+    viewer.frame_arm(cam)
+    assert cam.azimuth == 160 and cam.elevation == -20
+
+
+@pytest.fixture(scope="module")
+def xvfb():
+    """A virtual X display for the real viewer (Xvfb is installed by .ci/run)."""
+    if shutil.which("Xvfb") is None:
+        pytest.skip("Xvfb is not installed (apt-get install -y xvfb)")
+    num = 90 + os.getpid() % 50
+    proc = subprocess.Popen(
+        ["Xvfb", f":{num}", "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    for _ in range(50):
+        if os.path.exists(f"/tmp/.X11-unix/X{num}"):
+            break
+        time.sleep(0.1)
+    yield f":{num}"
+    proc.terminate()
+    proc.wait(timeout=10)
+
+
+def _run(code: str, display: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "DISPLAY": display}
+    env.pop("MUJOCO_GL", None)
+    return subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+
+
+@pytest.mark.viewer
+def test_viewer_opens_syncs_and_closes_without_a_crash(xvfb):
+    out = _run(
+        """
+        from so101sim import Simulation, ZERO_POSE
+        from so101sim.simulation import Pacer, ViewerObserver
+        from so101sim.viewer import open_viewer
+
+        sim = Simulation()
+        with open_viewer(sim.model, sim.data) as v:
+            assert v.is_running()
+            sim.observers.append(ViewerObserver(v, Pacer(speed=4.0)))
+            r = sim.move_to(ZERO_POSE, 0.5)
+        print("completed", r.completed, r.steps)
+        """,
+        xvfb,
+    )
+    assert out.returncode == 0, out.stderr
+    assert "completed True 250" in out.stdout
+
+
+@pytest.mark.viewer
+def test_viewer_closed_early_ends_the_run_cleanly(xvfb):
+    out = _run(
+        """
+        import threading
+        from so101sim import Simulation, ZERO_POSE
+        from so101sim.simulation import Pacer, ViewerObserver
+        from so101sim.viewer import open_viewer
+
+        sim = Simulation()
+        with open_viewer(sim.model, sim.data) as v:
+            sim.observers.append(ViewerObserver(v, Pacer()))
+            threading.Timer(0.3, v.close).start()  # the user closes the window
+            r = sim.move_to(ZERO_POSE, 5.0)
+        print("completed", r.completed, r.steps < 2500)
+        """,
+        xvfb,
+    )
+    assert out.returncode == 0, out.stderr
+    assert "completed False True" in out.stdout
+
+
+@pytest.mark.viewer
+def test_cli_run_uses_the_viewer_when_there_is_a_display(xvfb):
+    env = {**os.environ, "DISPLAY": xvfb}
+    env.pop("MUJOCO_GL", None)
+    out = subprocess.run(
+        [sys.executable, "-m", "so101sim", "run", "--speed", "8"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert out.returncode == 0, out.stderr
+    assert "headless" not in out.stdout
+    assert "return [move" in out.stdout
