@@ -136,3 +136,27 @@ def test_cli_run_uses_the_viewer_when_there_is_a_display(xvfb):
     assert out.returncode == 0, out.stderr
     assert "headless" not in out.stdout
     assert "return [move" in out.stdout
+
+
+@pytest.mark.viewer
+@pytest.mark.parametrize(
+    "cmd",
+    [["-m", "so101sim", "view"], ["-m", "mujoco.viewer", "--mjcf={scene}"]],
+    ids=["so101sim-view", "mujoco-viewer-on-model-path"],
+)
+def test_interactive_viewer_starts_on_the_shipped_model(xvfb, cmd):
+    from so101sim.model import scene_path
+
+    env = {**os.environ, "DISPLAY": xvfb}
+    env.pop("MUJOCO_GL", None)
+    args = [sys.executable, *(c.format(scene=scene_path()) for c in cmd)]
+    proc = subprocess.Popen(
+        args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        _, err = proc.communicate(timeout=6)
+    except subprocess.TimeoutExpired:  # still showing the model: it started fine
+        proc.kill()
+        proc.communicate()
+        return
+    pytest.fail(f"viewer exited early with {proc.returncode}: {err}")
