@@ -3,7 +3,6 @@ import shutil
 import subprocess
 import sys
 import textwrap
-import time
 
 import pytest
 
@@ -52,16 +51,19 @@ def xvfb():
     """A virtual X display for the real viewer (Xvfb is installed by .ci/run)."""
     if shutil.which("Xvfb") is None:
         pytest.skip("Xvfb is not installed (apt-get install -y xvfb)")
-    num = 90 + os.getpid() % 50
-    proc = subprocess.Popen(
-        ["Xvfb", f":{num}", "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
+    read_fd, write_fd = os.pipe()
+    proc = subprocess.Popen(  # Xvfb picks a free display number and writes it to write_fd
+        ["Xvfb", "-displayfd", str(write_fd), "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
+        pass_fds=(write_fd,),
     )
-    for _ in range(50):
-        if os.path.exists(f"/tmp/.X11-unix/X{num}"):
-            break
-        time.sleep(0.1)
+    os.close(write_fd)
+    with os.fdopen(read_fd) as f:
+        num = f.readline().strip()
+    if not num:
+        proc.kill()
+        pytest.fail("Xvfb did not start")
     yield f":{num}"
     proc.terminate()
     proc.wait(timeout=10)
