@@ -21,7 +21,7 @@ import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -30,6 +30,9 @@ from mujoco import rollout as _rollout
 from .errors import SimulationDivergedError
 from .model import ArmIndex, arm_index, arm_units, load_model
 from .units import STARTING_POSE, ArmUnits, Pose
+
+if TYPE_CHECKING:
+    from .motion import SegmentResult
 
 log = logging.getLogger(__name__)
 
@@ -423,7 +426,7 @@ class Simulation:
         viewer: Any = None,
         clip: bool = False,
         phase: str = "move",
-    ):
+    ) -> SegmentResult:
         """Move from the last commanded target to ``target`` in ``duration`` s of simulated time.
 
         Returns a :class:`so101sim.motion.SegmentResult` (commanded and reached pose, largest
@@ -443,7 +446,7 @@ class Simulation:
                 phase=phase,
             )
 
-    def hold(self, duration: float, *, viewer: Any = None, phase: str = "hold"):
+    def hold(self, duration: float, *, viewer: Any = None, phase: str = "hold") -> SegmentResult:
         """Hold the last commanded target for ``duration`` s of simulated time."""
         from .motion import hold
 
