@@ -153,3 +153,12 @@ def test_cli_check_thresholds_and_errors(tmp_path, capsys):
     bad.write_text("[[steps]]\nmove = 'nowhere'\nduration = 1\n")
     assert cli.main(["check", str(bad)]) == 2
     assert f"{bad}:2: unknown pose 'nowhere'" in capsys.readouterr().err
+
+
+def test_the_example_motion_passes():
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "examples" / "wave.toml"
+    report = check_motion_file(path)
+    assert report.passed, report.failures
+    assert len(report.steps) == 10
