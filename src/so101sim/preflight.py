@@ -79,7 +79,9 @@ class JointCheck:
     limit_margin: float  # closest approach to a limit (arm units); < 0: past it
     limit_side: str  # "lower" | "upper": the limit it came closest to
     peak_effort: float  # max |force| / force limit
-    saturated: float  # s: longest unbroken stretch with effort above the threshold's max_effort
+    # s: longest unbroken stretch with effort above max_effort that reaches into this step
+    # (a stretch that began in an earlier step counts from when it began)
+    saturated: float
     peak_tracking_error: float  # arm units
 
 
