@@ -43,3 +43,15 @@ __all__ = [
     "run_motion",
     "scene_path",
 ]
+
+# Motions as data, profiles, preflight (issue 6).
+from .errors import MotionFileError, TrajectoryLimitError
+from .motionfile import MotionFile, lab_motion_path, load_motion
+
+__all__ += [
+    "MotionFile",
+    "MotionFileError",
+    "TrajectoryLimitError",
+    "lab_motion_path",
+    "load_motion",
+]

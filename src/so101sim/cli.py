@@ -1,6 +1,8 @@
 """The ``so101sim`` command line. It parses arguments, calls the library and prints results.
 
-so101sim run            the lab motion (viewer on a desktop, headless otherwise)
+so101sim run [MOTION]   a motion file, by default the lab motion (viewer on a desktop)
+so101sim pose           pose the arm in the viewer; prints each pose as a dict and as TOML
+so101sim check MOTION   simulate a motion headless and judge it: PASS or FAIL
 so101sim hold           hold the starting pose (the lab's first script)
 so101sim view           open the model in MuJoCo's interactive viewer
 so101sim model-path     print the folder of the shipped model
@@ -16,10 +18,12 @@ from contextlib import ExitStack
 
 from . import __version__
 from .errors import So101SimError
-from .model import model_dir
-from .motion import LAB_MOTION, Hold, RunResult, SegmentResult, run_motion
+from .model import arm_units, load_model, model_dir
+from .motion import Hold, RunResult, SegmentResult, run_motion
+from .motionfile import lab_motion_path, load_motion
 from .simulation import Pacer, Simulation, ViewerObserver
-from .units import GRIPPER, STARTING_POSE, format_pose
+from .trajectory import check_limited_moves
+from .units import GRIPPER, STARTING_POSE, Pose, format_pose
 from .viewer import has_display, open_viewer, view
 
 log = logging.getLogger("so101sim")
@@ -70,8 +74,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    p = sub.add_parser("run", help="run the lab motion: rest -> zeros (2 s), hold 2 s, back (2 s)")
+    p = sub.add_parser("run", help="run a motion file (default: the lab motion)")
     _add_common(p)
+    _add_motion_args(p)
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("hold", help="hold the starting (rest) pose, as the lab's first script")
@@ -85,11 +90,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("model-path", help="print the folder holding the shipped model")
     p.set_defaults(func=cmd_model_path)
+
+    _add_pose_parser(sub)
+    _add_check_parser(sub)
     return parser
 
 
-def _run_steps(args: argparse.Namespace, steps) -> int:
-    sim = Simulation(args.model)
+def _run_steps(args: argparse.Namespace, steps, start: Pose = STARTING_POSE) -> int:
+    sim = Simulation(args.model, initial_pose=start)
     use_viewer = not args.headless and has_display()
     if not args.headless and not use_viewer:
         print("no display found: running headless (use --headless to say so, xvfb-run to view)")
@@ -104,7 +112,13 @@ def _run_steps(args: argparse.Namespace, steps) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    return _run_steps(args, LAB_MOTION)
+    motion = load_motion(args.motion if args.motion else lab_motion_path())
+    if args.strict:
+        m = load_model(args.model)
+        units = arm_units(m)
+        start = units.pose_to_array(motion.start)
+        check_limited_moves(start, motion.steps, m.opt.timestep, units=units, strict=True)
+    return _run_steps(args, motion.steps, motion.start)
 
 
 def cmd_hold(args: argparse.Namespace) -> int:
@@ -121,6 +135,112 @@ def cmd_view(args: argparse.Namespace) -> int:
 def cmd_model_path(args: argparse.Namespace) -> int:
     print(model_dir())
     return 0
+
+
+# ---------------------------------------------------------------------------- motion files
+def _add_motion_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "motion",
+        nargs="?",
+        help="a TOML motion file (default: the shipped lab motion, rest -> zeros -> rest)",
+    )
+    p.add_argument(
+        "--strict",
+        action="store_true",
+        help="refuse 'limited' moves shorter than the joint limits allow (default: stretch them)",
+    )
+
+
+# ---------------------------------------------------------------------------- pose finder
+def _add_pose_parser(sub) -> None:
+    p = sub.add_parser(
+        "pose", help="pose the arm in the viewer; prints each pose as a Python dict and as TOML"
+    )
+    p.add_argument("--model", help="MJCF file to load instead of the shipped scene.xml")
+    p.set_defaults(func=cmd_pose)
+
+
+def cmd_pose(args: argparse.Namespace) -> int:
+    from .posefinder import format_python, format_toml, pose_scene, watch_poses
+
+    m, d = pose_scene(args.model)
+    print(
+        "Move the joint sliders (right panel, 'Joint'), or double-click a part and "
+        "Ctrl+right-drag it. Each pose the arm is left in is printed below; close the window "
+        "to finish.",
+        flush=True,
+    )
+    with open_viewer(m, d, show_ui=True) as handle:
+        for change in watch_poses(handle, m, d):
+            print(
+                f"\n# pose {change.number} (t = {change.time:.1f} s)\n"
+                f"python: {format_python(change.pose)}\n"
+                f"toml:   {format_toml(f'pose_{change.number}', change.pose)}",
+                flush=True,
+            )
+    return 0
+
+
+# ---------------------------------------------------------------------------- preflight
+def _add_check_parser(sub) -> None:
+    p = sub.add_parser(
+        "check", help="simulate a motion file headless and judge it before hardware: PASS/FAIL"
+    )
+    p.add_argument("motion", help="the TOML motion file to check")
+    p.add_argument("--model", help="MJCF file to load instead of the shipped scene.xml")
+    p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.add_argument(
+        "--max-effort",
+        type=float,
+        default=0.9,
+        help="effort (fraction of the actuator's force limit) counted as saturated (default 0.9)",
+    )
+    p.add_argument(
+        "--max-saturation",
+        type=float,
+        default=0.03,
+        help="seconds the effort may stay above --max-effort (default 0.03)",
+    )
+    p.add_argument(
+        "--max-tracking-error",
+        type=float,
+        default=5.0,
+        help="largest allowed |commanded - measured|, degrees (gripper: 0-100 units) (default 5)",
+    )
+    p.add_argument(
+        "--limit-margin",
+        type=float,
+        default=1.0,
+        help="closest a body joint may come to a limit, degrees (default 1)",
+    )
+    p.add_argument(
+        "--strict",
+        action="store_true",
+        help="refuse 'limited' moves shorter than the joint limits allow (default: stretch them)",
+    )
+    p.set_defaults(func=cmd_check)
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    import json
+
+    from .preflight import Thresholds, check_motion_file, format_report
+
+    try:
+        thresholds = Thresholds(
+            max_effort=args.max_effort,
+            max_saturation=args.max_saturation,
+            max_tracking_error=args.max_tracking_error,
+            limit_margin=args.limit_margin,
+        )
+    except ValueError as exc:
+        print(f"so101sim: error: {exc}", file=sys.stderr)
+        return 2
+    report = check_motion_file(
+        args.motion, model=args.model, thresholds=thresholds, strict=args.strict
+    )
+    print(json.dumps(report.to_dict(), indent=2) if args.json else format_report(report))
+    return 0 if report.passed else 1
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -37,3 +37,23 @@ class SimulationDivergedError(So101SimError, RuntimeError):
 
 class ViewerError(So101SimError, RuntimeError):
     """The interactive viewer cannot be opened here (no display, macOS without mjpython)."""
+
+
+class MotionFileError(So101SimError, ValueError):
+    """A motion file cannot be read, is not valid TOML, or says something invalid.
+
+    ``path``, ``line`` (1-based; 0 when no line applies, e.g. a missing file) and ``reason`` are
+    kept as attributes; the message reads ``path:line: reason``.
+    """
+
+    def __init__(self, path: str, line: int, reason: str) -> None:
+        self.path = str(path)
+        self.line = int(line)
+        self.reason = reason
+        where = f"{self.path}:{self.line}" if self.line > 0 else self.path
+        super().__init__(f"{where}: {reason}")
+
+
+class TrajectoryLimitError(So101SimError, ValueError):
+    """A move is shorter than the joints' velocity, acceleration and jerk limits allow, and
+    stretching it was not allowed (strict mode)."""

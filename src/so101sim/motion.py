@@ -21,6 +21,7 @@ import numpy as np
 from .errors import DurationError, So101SimError
 from .model import arm_units
 from .simulation import Observer, Trace, advance, commanded_target, measured_radians
+from .trajectory import LimitedProfile
 from .units import JOINT_NAMES, STARTING_POSE, ZERO_POSE, ArmUnits, Pose
 
 log = logging.getLogger(__name__)
@@ -69,12 +70,17 @@ def _minimum_jerk(s: np.ndarray) -> np.ndarray:
 PROFILES: dict[str, Profile] = {
     "linear": _shape(_linear),
     "minimum_jerk": _shape(_minimum_jerk),
+    "limited": LimitedProfile(),
 }
-"""Profile name -> function. ``limited`` is registered by :mod:`so101sim.trajectory` if present."""
+"""Profile name -> function. ``limited``: time-optimal under the STS3215's velocity,
+acceleration and jerk limits (:mod:`so101sim.trajectory`)."""
 
 
-def get_profile(name: str) -> Profile:
-    """The profile called ``name``; raises So101SimError listing the valid names."""
+def get_profile(name: str | Profile) -> Profile:
+    """The profile called ``name`` (a profile function is returned as is); raises
+    So101SimError listing the valid names."""
+    if callable(name):
+        return name
     try:
         return PROFILES[name]
     except KeyError:
@@ -163,7 +169,7 @@ def plan_move(
     target: Pose,
     duration: float,
     *,
-    profile: str = "linear",
+    profile: str | Profile = "linear",
     clip: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Validate a move and compute all its targets: ``(start, targets)`` in arm units.
@@ -185,7 +191,7 @@ def move(
     target: Pose,
     duration: float,
     *,
-    profile: str = "linear",
+    profile: str | Profile = "linear",
     observers: Sequence[Observer] = (),
     clip: bool = False,
     phase: str = "move",
@@ -224,7 +230,7 @@ class Move:
 
     target: Pose
     duration: float
-    profile: str = "linear"
+    profile: str | Profile = "linear"
     phase: str = "move"
 
 

@@ -1,0 +1,23 @@
+"""Check a motion file in the simulation, and run it only if it passes.
+
+python examples/check_then_run.py examples/wave.toml
+"""
+
+import sys
+
+from so101sim import Simulation, load_motion, run_motion
+from so101sim.preflight import check_motion_file, format_report
+
+path = sys.argv[1] if len(sys.argv) > 1 else "examples/wave.toml"
+
+report = check_motion_file(path)
+print(format_report(report))
+if not report.passed:
+    sys.exit(1)
+
+motion = load_motion(path)
+sim = Simulation(initial_pose=motion.start)
+result = run_motion(sim.model, sim.data, motion.steps)
+for seg in result.segments:
+    joint, error = seg.worst_tracking_error
+    print(f"{seg.phase:>12}: ended at {seg.end_time:.3f} s, largest error {error:.2f} ({joint})")

@@ -1,0 +1,251 @@
+"""Motion files: the TOML schema, every loader error with its file and line, the lab file."""
+
+from __future__ import annotations
+
+import math
+import textwrap
+
+import mujoco
+import numpy as np
+import pytest
+
+from so101sim import cli, lab
+from so101sim.errors import MotionFileError, So101SimError
+from so101sim.model import load_model
+from so101sim.motion import LAB_MOTION, Hold, Move, run_motion
+from so101sim.motionfile import lab_motion_path, load_motion, parse_motion
+from so101sim.simulation import Simulation
+from so101sim.units import JOINT_NAMES, STARTING_POSE, ZERO_POSE, default_units
+
+
+def _parse(text: str):
+    return parse_motion(textwrap.dedent(text), path="m.toml")
+
+
+def _error(text: str) -> MotionFileError:
+    with pytest.raises(MotionFileError) as exc:
+        _parse(text)
+    return exc.value
+
+
+GOOD = """\
+description = "test"
+profile = "minimum_jerk"
+
+[poses]
+up = { shoulder_lift = 0, elbow_flex = 0 }
+
+[poses.left]
+shoulder_pan = 45
+"wrist_roll.pos" = 10
+
+[[steps]]
+move = "up"
+duration = 1.0
+
+[[steps]]
+hold = 0.5
+
+[[steps]]
+move = "left"
+duration = 2.0
+profile = "limited"
+name = "turn"
+
+[[steps]]
+gripper = 40
+duration = 0.5
+
+[[steps]]
+move = { wrist_flex = -20 }
+duration = 1.0
+"""
+
+
+def test_a_motion_file_loads_into_full_pose_steps():
+    mf = _parse(GOOD)
+    assert mf.description == "test"
+    assert mf.start == STARTING_POSE
+    assert mf.poses["left"] == {"shoulder_pan": 45.0, "wrist_roll": 10.0}
+    kinds = [type(s).__name__ for s in mf.steps]
+    assert kinds == ["Move", "Hold", "Move", "Move", "Move"]
+    up, _, left, grip, wrist = mf.steps
+    # a partial pose moves only the joints it names; the others keep their last target
+    assert up.target == {**STARTING_POSE, "shoulder_lift": 0.0, "elbow_flex": 0.0}
+    assert left.target == {**up.target, "shoulder_pan": 45.0, "wrist_roll": 10.0}
+    assert grip.target == {**left.target, "gripper": 40.0}
+    assert wrist.target == {**grip.target, "wrist_flex": -20.0}
+    assert up.profile == "minimum_jerk" and left.profile == "limited"
+    assert [s.phase for s in mf.steps] == ["to_up", "hold", "turn", "gripper", "move"]
+    assert mf.lines == (11, 15, 18, 24, 28)
+
+
+def test_radians_are_converted_for_body_joints_only():
+    mf = _parse(
+        """\
+        units = "rad"
+        start = { shoulder_pan = 0, shoulder_lift = -1.5, elbow_flex = 1.5,
+                  wrist_flex = 1, wrist_roll = 0, gripper = 10 }
+        [[steps]]
+        move = { shoulder_pan = 0.5, gripper = 50 }
+        duration = 1
+        """.replace(",\n                  ", ", ")
+    )
+    assert mf.start["shoulder_lift"] == pytest.approx(math.degrees(-1.5))
+    assert mf.start["gripper"] == 10.0
+    assert mf.steps[0].target["shoulder_pan"] == pytest.approx(math.degrees(0.5))
+    assert mf.steps[0].target["gripper"] == 50.0
+
+
+LIMIT = default_units().limits_dict()
+
+
+@pytest.mark.parametrize(
+    ("text", "line", "reason"),
+    [
+        ("[[steps]]\nhold = 1\nhold = 2\n", 3, "not valid TOML"),
+        ("steps = [\n", 1, "end of the file"),
+        ("[[steps]]\nhold = 1\nx = [\n\n", 4, "end of the file"),
+        ("colour = 'red'\n[[steps]]\nhold = 1\n", 1, "unknown key 'colour'"),
+        ("[[steps]]\nhold = 1\n\n[[steps]]\nhold = 1\nspeed = 3\n", 6, "unknown key 'speed'"),
+        ("[[steps]]\nmove = 'zero'\nduration = 1\ncolour = 1\n", 4, "unknown key 'colour'"),
+        ("[[steps]]\nhold = 1\n[[steps]]\nmove = 'wave'\nduration = 1\n", 4, "unknown pose 'wave'"),
+        ("start = 'nowhere'\n[[steps]]\nhold = 1\n", 1, "unknown pose 'nowhere'"),
+        ("[poses.a]\nshoulder_pan = 0\nelbo = 3\n[[steps]]\nhold = 1\n", 3, "unknown joint 'elbo'"),
+        ("[poses]\na = { shoulder_pan = 0, knee = 3 }\n[[steps]]\nhold = 1\n", 2, "'knee'"),
+        ("[[steps]]\nmove = { elbow = 1 }\nduration = 1\n", 2, "unknown joint 'elbow'"),
+        ("units = 'grad'\n[[steps]]\nhold = 1\n", 1, "unknown units 'grad'"),
+        ("[poses]\na = { shoulder_pan = 200 }\n[[steps]]\nhold = 1\n", 2, "outside the joint"),
+        ("\n[poses.a]\ngripper = 101\n[[steps]]\nhold = 1\n", 3, "gripper = 101"),
+        ("[[steps]]\ngripper = -5\nduration = 1\n", 2, "outside the joint"),
+        ("[[steps]]\nmove = { elbow_flex = 'x' }\nduration = 1\n", 2, "not a number"),
+        ("[[steps]]\nmove = { elbow_flex = nan }\nduration = 1\n", 2, "not finite"),
+        ("[[steps]]\nmove = 'zero'\nduration = -1\n", 3, "expected a finite number of seconds"),
+        ("[[steps]]\nmove = 'zero'\nduration = 0\n", 3, "expected a finite number of seconds"),
+        ("[[steps]]\nhold = 1\n[[steps]]\nhold = 0\n", 4, "> 0"),
+        ("[[steps]]\nhold = 'long'\n", 2, "not a number"),
+        ("[[steps]]\nmove = 'zero'\n", 1, "needs a duration"),
+        ("[[steps]]\nmove = 'zero'\nhold = 1\nduration = 1\n", 1, "exactly one of"),
+        ("[[steps]]\nname = 'x'\n", 1, "exactly one of"),
+        ("[[steps]]\nmove = 'zero'\nduration = 1\nprofile = 'fast'\n", 4, "unknown profile"),
+        ("profile = 'fast'\n[[steps]]\nhold = 1\n", 1, "unknown profile"),
+        ("[poses]\nrest = { gripper = 5 }\n[[steps]]\nhold = 1\n", 2, "built in"),
+        ("start = 1\n[poses]\nup = { shoulder_lift = 0 }\n", 1, "a pose must be a table"),
+        ("[poses]\nup = { shoulder_lift = 0 }\nstart = 1\n[[steps]]\nhold = 1\n", 3, "table"),
+        ("start = { gripper = 5 }\n[[steps]]\nhold = 1\n", 1, "missing shoulder_pan"),
+        ("start = 'half'\n[poses]\nhalf = { gripper = 5 }\n[[steps]]\nhold = 1\n", 1, "six"),
+        ("description = 'x'\n", 1, "at least one step"),
+        ("poses.a.shoulder_pan = 0\nposes.a.elbow = 1\n[[steps]]\nhold = 1\n", 2, "'elbow'"),
+    ],
+)
+def test_every_loader_error_names_file_line_and_reason(text, line, reason):
+    err = _error(text)
+    assert err.path == "m.toml"
+    assert err.line == line, str(err)
+    assert reason in err.reason
+    assert str(err).startswith(f"m.toml:{line}: ")
+    assert isinstance(err, So101SimError)
+
+
+def test_errors_in_the_nth_steps_table_point_at_that_table():
+    text = "[[steps]]\nhold = 1\n" * 4 + "[[steps]]\nmove = 'zero'\nduration = 1\nspin = 1\n"
+    assert _error(text).line == 12
+
+
+def test_a_limit_error_gives_the_limits():
+    err = _error("[[steps]]\nmove = { elbow_flex = 120 }\nduration = 1\n")
+    lo, hi = LIMIT["elbow_flex"]
+    assert f"{lo:.2f}°..{hi:.2f}°" in err.reason
+
+
+def test_loading_a_file(tmp_path):
+    path = tmp_path / "wave.toml"
+    path.write_text(GOOD)
+    mf = load_motion(path)
+    assert mf.path == str(path) and len(mf.steps) == 5
+    path.write_text("[[steps]]\nhold = -1\n")
+    with pytest.raises(MotionFileError) as exc:
+        load_motion(path)
+    assert str(exc.value).startswith(f"{path}:2: ")
+
+
+def test_a_missing_file_is_a_motion_file_error(tmp_path):
+    with pytest.raises(MotionFileError, match="no such file") as exc:
+        load_motion(tmp_path / "nope.toml")
+    assert exc.value.line == 0
+
+
+def test_the_loader_never_evaluates_code(tmp_path):
+    marker = tmp_path / "pwned"
+    code = f"__import__('pathlib').Path('{marker}').touch()"
+    text = f'description = "{code}"\n[[steps]]\nhold = 1\n'
+    mf = _parse(text)
+    assert not marker.exists()
+    assert "__import__" in mf.description
+
+
+def test_the_shipped_lab_file_is_the_lab_motion():
+    mf = load_motion(lab_motion_path())
+    assert mf.start == STARTING_POSE
+    assert mf.steps == LAB_MOTION
+
+
+def test_the_shipped_lab_file_runs_bit_identical_to_the_lab_helpers():
+    m = load_model()
+    mf = load_motion(lab_motion_path())
+    sim = Simulation(m, initial_pose=mf.start)
+    from_file = run_motion(m, sim.data, mf.steps)
+
+    d = mujoco.MjData(m)
+    lab.set_initial_pose(d, STARTING_POSE)
+    helpers = [
+        lab.move_to_pose(m, d, None, ZERO_POSE, 2.0),
+        lab.hold_position(m, d, None, 2.0),
+        lab.move_to_pose(m, d, None, STARTING_POSE, 2.0),
+    ]
+    assert len(from_file.segments) == len(helpers)
+    for a, b in zip(from_file.segments, helpers, strict=True):
+        np.testing.assert_array_equal(a.times, b.times)
+        np.testing.assert_array_equal(a.commanded, b.commanded)
+        np.testing.assert_array_equal(a.measured, b.measured)
+    np.testing.assert_array_equal(sim.data.qpos, d.qpos)
+    np.testing.assert_array_equal(sim.data.qvel, d.qvel)
+
+
+def test_cli_run_without_a_file_runs_the_lab_motion(capsys):
+    assert cli.main(["run", "--headless"]) == 0
+    out = capsys.readouterr().out
+    assert [line.split(" ")[0] for line in out.splitlines() if "[" in line] == [
+        "to_zero",
+        "hold",
+        "return",
+    ]
+
+
+def test_cli_run_runs_a_motion_file(tmp_path, capsys):
+    path = tmp_path / "m.toml"
+    path.write_text("[[steps]]\nname = 'open'\ngripper = 50\nduration = 0.2\n")
+    assert cli.main(["run", "--headless", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "open [move, 0.000-0.200 s, 100 steps]" in out
+
+
+def test_cli_run_reports_a_bad_file_with_its_line(tmp_path, capsys):
+    path = tmp_path / "bad.toml"
+    path.write_text("[[steps]]\nhold = 0\n")
+    assert cli.main(["run", "--headless", str(path)]) == 2
+    assert f"{path}:2:" in capsys.readouterr().err
+
+
+def test_cli_run_strict_refuses_a_too_short_limited_move(tmp_path, capsys):
+    path = tmp_path / "fast.toml"
+    path.write_text("[[steps]]\nmove = 'zero'\nduration = 0.1\nprofile = 'limited'\n")
+    assert cli.main(["run", "--headless", "--strict", str(path)]) == 2
+    assert "at least" in capsys.readouterr().err
+    assert cli.main(["run", "--headless", str(path)]) == 0  # stretched instead
+
+
+def test_steps_are_motion_step_objects():
+    mf = _parse("[[steps]]\nhold = 1\n[[steps]]\nmove = 'zero'\nduration = 2\n")
+    assert isinstance(mf.steps[0], Hold) and isinstance(mf.steps[1], Move)
+    assert set(mf.steps[1].target) == set(JOINT_NAMES)
