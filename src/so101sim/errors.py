@@ -37,3 +37,20 @@ class SimulationDivergedError(So101SimError, RuntimeError):
 
 class ViewerError(So101SimError, RuntimeError):
     """The interactive viewer cannot be opened here (no display, macOS without mjpython)."""
+
+
+class OutputPathError(So101SimError, ValueError):
+    """An output file (video, plot, log) cannot be written: its folder is missing or not
+    writable, or the file exists and overwriting was not asked for."""
+
+
+class CameraError(So101SimError, ValueError):
+    """A camera name the model does not have; the message lists the valid ones."""
+
+
+class RenderBackendError(So101SimError, RuntimeError):
+    """No OpenGL backend could render offscreen (EGL, OSMesa); the message says what to install."""
+
+
+class RecordingError(So101SimError, ValueError):
+    """Invalid recording settings (frame size, frame rate, quality preset)."""
