@@ -8,7 +8,7 @@ uses) to about ``--faces`` triangles and writes them, with a manifest, to
 rerun this script only when the model's meshes change::
 
     pip install fast-simplification
-    python scripts/make_draft_meshes.py            # default: 2000 faces per mesh
+    python scripts/make_draft_meshes.py            # default: 5000 faces per mesh
 
 Only the rendering uses them: collision geometry (and so the physics) keeps the originals.
 """
@@ -86,7 +86,7 @@ def simplify(verts: np.ndarray, faces: np.ndarray, target: int) -> tuple[np.ndar
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--faces", type=int, default=2000, help="target triangles per mesh")
+    p.add_argument("--faces", type=int, default=5000, help="target triangles per mesh")
     p.add_argument("--weld", type=float, default=0.0005, help="weld tolerance in metres")
     p.add_argument("--source", type=Path, default=SOURCE)
     p.add_argument("--dest", type=Path, default=DEST)

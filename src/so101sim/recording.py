@@ -18,7 +18,7 @@ Rendering uses ``mujoco.Renderer`` on a private copy of the model (its offscreen
 to the frame size), fed the simulation's joint angles: the physics model is never touched.
 The ``draft`` quality preset (the default) swaps the visual meshes for simplified ones shipped
 in ``so101sim/data/draft_meshes`` and turns off shadows, reflections and multisampling, which
-makes a CPU renderer (Mesa llvmpipe) about 15–20× faster; ``full`` keeps the model's look.
+makes a CPU renderer (Mesa llvmpipe) about 20× faster; ``full`` keeps the model's look.
 """
 
 from __future__ import annotations
