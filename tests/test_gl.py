@@ -34,9 +34,7 @@ def test_select_backend_sets_mujoco_gl_only_when_headless_and_unset(monkeypatch)
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     monkeypatch.setattr(gl.sys, "platform", "linux")
-    monkeypatch.setattr(
-        gl.sys, "modules", {k: v for k, v in gl.sys.modules.items() if k != "mujoco"}
-    )
+    monkeypatch.setattr(gl, "_mujoco_imported", lambda: False)
     assert gl.select_backend(loader_for("libOSMesa")) == "osmesa"
     assert "chose osmesa" in gl.selection
     # already set: left alone

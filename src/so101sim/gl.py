@@ -65,6 +65,10 @@ def choose_headless_backend(loader: Callable[[str], bool] = _dlopen) -> str | No
     return None
 
 
+def _mujoco_imported() -> bool:
+    return "mujoco" in sys.modules
+
+
 def select_backend(loader: Callable[[str], bool] = _dlopen) -> str | None:
     """With no display and nothing chosen, set ``MUJOCO_GL`` to EGL, or OSMesa when EGL does not
     load; return the choice (None: none loads, rendering will fail with :func:`backend_help`)."""
@@ -73,7 +77,7 @@ def select_backend(loader: Callable[[str], bool] = _dlopen) -> str | None:
         selection = "MUJOCO_GL was set before so101sim was imported"
     elif not headless():
         selection = "a display is available: MuJoCo's default (GLFW)"
-    elif "mujoco" in sys.modules:
+    elif _mujoco_imported():
         selection = (
             "mujoco was imported before so101sim, too late to choose a headless backend "
             "(import so101sim first, or set MUJOCO_GL=egl)"
