@@ -2,17 +2,22 @@
 
 from . import gl as _gl  # noqa: F401  (picks the OpenGL backend before mujoco is imported)
 from .errors import (
+    CameraError,
     DurationError,
     JointLimitError,
     JointNameError,
     JointValueError,
     ModelError,
+    OutputPathError,
+    RecordingError,
+    RenderBackendError,
     SimulationDivergedError,
     So101SimError,
     ViewerError,
 )
 from .model import load_model, model_dir, scene_path
 from .motion import LAB_MOTION, Hold, Move, RunResult, SegmentResult, run_motion
+from .recording import Recorder, VideoSettings, plot_run
 from .simulation import Pacer, Simulation
 from .units import JOINT_NAMES, STARTING_POSE, ZERO_POSE
 
@@ -23,6 +28,7 @@ __all__ = [
     "LAB_MOTION",
     "STARTING_POSE",
     "ZERO_POSE",
+    "CameraError",
     "DurationError",
     "Hold",
     "JointLimitError",
@@ -30,16 +36,22 @@ __all__ = [
     "JointValueError",
     "ModelError",
     "Move",
+    "OutputPathError",
     "Pacer",
+    "Recorder",
+    "RecordingError",
+    "RenderBackendError",
     "RunResult",
     "SegmentResult",
     "Simulation",
     "SimulationDivergedError",
     "So101SimError",
+    "VideoSettings",
     "ViewerError",
     "__version__",
     "load_model",
     "model_dir",
+    "plot_run",
     "run_motion",
     "scene_path",
 ]

@@ -11,6 +11,7 @@ so101sim model-path     print the folder of the shipped model
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import sys
 from collections.abc import Sequence
@@ -77,11 +78,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("run", help="run a motion file (default: the lab motion)")
     _add_common(p)
     _add_motion_args(p)
+    add_recording_options(p)
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("hold", help="hold the starting (rest) pose, as the lab's first script")
     _add_common(p)
     p.add_argument("--duration", type=float, default=30.0, help="seconds to hold (default 30)")
+    add_recording_options(p)
     p.set_defaults(func=cmd_hold)
 
     p = sub.add_parser("view", help="open the model in MuJoCo's interactive viewer")
@@ -98,17 +101,111 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _run_steps(args: argparse.Namespace, steps, start: Pose = STARTING_POSE) -> int:
     sim = Simulation(args.model, initial_pose=start)
+    recorder, bar = recorder_from_args(args, sim, sum(s.duration for s in steps))  # checks paths
     use_viewer = not args.headless and has_display()
-    if not args.headless and not use_viewer:
+    if not args.headless and not use_viewer and recorder is None:
         print("no display found: running headless (use --headless to say so, xvfb-run to view)")
     with ExitStack() as stack:
         observers = []
+        if recorder is not None:
+            stack.enter_context(_reporting(recorder, bar))
+            observers.extend(recorder.observers)
         if use_viewer:
             handle = stack.enter_context(open_viewer(sim.model, sim.data))
             observers.append(ViewerObserver(handle, Pacer(args.speed)))
         result = run_motion(sim.model, sim.data, steps, observers=observers)
     print_run(result)
     return 0
+
+
+# ---------------------------------------------------------------------------- recording
+def add_recording_options(p: argparse.ArgumentParser) -> None:
+    """The --record/--plot/--log options of ``run`` and ``hold``."""
+    from .recording import QUALITY_CHOICES
+
+    g = p.add_argument_group("recording (video, plot and log of the run, no screen recorder)")
+    g.add_argument("--record", metavar="PATH", help="write an H.264 video of the run (.mp4)")
+    g.add_argument("--plot", metavar="PATH", help="plot commanded vs measured angles (.png)")
+    g.add_argument("--log", metavar="PATH", help="log every control step to a CSV file")
+    g.add_argument("--width", type=int, default=640, help="video width in pixels (default 640)")
+    g.add_argument("--height", type=int, default=480, help="video height in pixels (default 480)")
+    g.add_argument("--fps", type=float, default=30.0, help="video frames per simulated second")
+    g.add_argument(
+        "--camera", default="free", help="'free' (the viewer's view) or a camera of the model"
+    )
+    g.add_argument(
+        "--quality",
+        choices=QUALITY_CHOICES,
+        default="auto",
+        help="draft: fast on a CPU (simplified meshes, no shadows); full: the model's look; "
+        "auto (default): draft when rendering on the CPU, full on a GPU",
+    )
+    g.add_argument(
+        "--caption",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="draw the time and phase into the video (default: on)",
+    )
+    g.add_argument("--force", action="store_true", help="overwrite existing output files")
+
+
+def recorder_from_args(args: argparse.Namespace, sim: Simulation, duration: float):
+    """``(recorder, progress_bar)`` for the options (``(None, None)`` if no output was asked
+    for). Checks every path and setting before anything runs."""
+    if not (args.record or args.plot or args.log):
+        return None, None
+    from tqdm import tqdm
+
+    from .recording import Recorder, VideoSettings, video_frames
+
+    settings = VideoSettings(
+        width=args.width,
+        height=args.height,
+        fps=args.fps,
+        camera=args.camera,
+        quality=args.quality,
+        caption=args.caption,
+    ).validated()
+    bar = None
+    if args.record:
+        bar = tqdm(
+            total=video_frames(duration, settings.fps),
+            unit="frame",
+            desc="recording",
+            file=sys.stderr,
+            delay=1.0,  # shown only for renders that take more than a second
+            disable=None,  # and only on a terminal
+            leave=False,
+        )
+    recorder = Recorder(
+        sim,
+        video=args.record,
+        plot=args.plot,
+        log=args.log,
+        settings=settings,
+        force=args.force,
+        progress=bar.update if bar is not None else None,
+    )
+    return recorder, bar
+
+
+@contextlib.contextmanager
+def _reporting(recorder, bar):
+    """Close the recorder's files on the way out (also on Ctrl-C) and say what was written."""
+    interrupted = False
+    try:
+        yield recorder
+    except KeyboardInterrupt:
+        interrupted = True
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+        written = recorder.close()
+        what = "so far " if interrupted else ""
+        for key, path in written.items():
+            extra = f" ({recorder.video.frames} frames)" if key == "video" else ""
+            print(f"wrote the {key} {what}to {path}{extra}")
 
 
 def cmd_run(args: argparse.Namespace) -> int:

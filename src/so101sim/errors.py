@@ -57,3 +57,20 @@ class MotionFileError(So101SimError, ValueError):
 class TrajectoryLimitError(So101SimError, ValueError):
     """A move is shorter than the joints' velocity, acceleration and jerk limits allow, and
     stretching it was not allowed (strict mode)."""
+
+
+class OutputPathError(So101SimError, ValueError):
+    """An output file (video, plot, log) cannot be written: its folder is missing or not
+    writable, or the file exists and overwriting was not asked for."""
+
+
+class CameraError(So101SimError, ValueError):
+    """A camera name the model does not have; the message lists the valid ones."""
+
+
+class RenderBackendError(So101SimError, RuntimeError):
+    """No OpenGL backend could render offscreen (EGL, OSMesa); the message says what to install."""
+
+
+class RecordingError(So101SimError, ValueError):
+    """Invalid recording settings (frame size, frame rate, quality preset)."""

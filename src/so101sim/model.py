@@ -124,3 +124,13 @@ def arm_units(model: mujoco.MjModel) -> ArmUnits:
     """The arm-unit conversions for ``model``'s joint limits."""
     idx = arm_index(model)
     return ArmUnits(lower=idx.lower, upper=idx.upper)
+
+
+def model_source(model: mujoco.MjModel) -> Path | None:
+    """The MJCF file ``model`` was compiled from by :func:`load_model`, or None if it was built
+    another way (or is a copy)."""
+    with _lock:
+        for (path, _mtime), cached in _cache.items():
+            if cached is model:
+                return Path(path)
+    return None
