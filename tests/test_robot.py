@@ -429,3 +429,16 @@ def test_viewer_is_synced_and_closed_with_the_robot():
         assert robot.get_observation()["shoulder_pan.pos"] == pytest.approx(10.0, abs=1.0)
     assert not robot.viewer_open
     assert set(threading.enumerate()) == before  # physics and viewer threads both ended
+
+
+def test_gripper_reading_is_clamped_to_0_100_as_lerobot_does(caplog):
+    robot = lockstep()
+    sim = robot.simulation
+    with robot:
+        with robot.lock:
+            sim.data.qpos[sim.index.qpos[-1]] = sim.units.lower[-1] - 0.01  # past the stop
+        assert robot.get_observation()["gripper.pos"] == 0.0
+        with caplog.at_level(logging.WARNING, logger="so101sim.robot"):
+            sent = robot.send_action({"gripper.pos": -1e-6})  # noise-level: clipped silently
+        assert sent == {"gripper.pos": 0.0}
+    assert caplog.text == ""

@@ -79,6 +79,7 @@ GRIPPER_TORQUE_FRACTION = 0.5
 
 _BLOCK_SECONDS = 0.004  # real-time mode steps the physics in blocks of this much simulated time
 _VIEWER_PERIOD = 1.0 / 60.0  # wall seconds between viewer syncs
+_CLIP_WARN_TOLERANCE = 1e-3  # goals this close to a limit are clipped without a warning
 
 
 def _positive(name: str, value: object, *, allow_zero: bool = False) -> float:
@@ -344,6 +345,9 @@ class SO101SimFollower:
     def get_observation(self) -> dict[str, float]:
         """The measured joint positions: ``{"shoulder_pan.pos": deg, ..., "gripper.pos": %}``.
 
+        The gripper's reading is clamped to 0..100, as LeRobot clamps it to the calibrated
+        range; body joints are not clamped (LeRobot's degrees are not either).
+
         In lockstep mode, then advances ``lockstep_observation_seconds`` of simulated time.
 
         Raises:
@@ -353,6 +357,8 @@ class SO101SimFollower:
         self._check_connected()
         with self._lock:
             values = self._sim.pose_array()
+            # LeRobot clamps the gripper's reading to its calibrated range (0..100)
+            values[GRIPPER_INDEX] = min(100.0, max(0.0, values[GRIPPER_INDEX]))
             if self.config.mode == "lockstep" and self.config.lockstep_observation_seconds:
                 self._advance(self.config.lockstep_observation_seconds)
         return dict(zip(MOTOR_KEYS, values.tolist(), strict=True))
@@ -503,7 +509,7 @@ class SO101SimFollower:
                 "limits": (float(lo[i]), float(hi[i])),
             }
             for n, g, c, i in zip(names, goal, clipped, idx, strict=True)
-            if abs(c - g) > 1e-9
+            if abs(c - g) > _CLIP_WARN_TOLERANCE
         }
         if warnings:
             log.warning(
