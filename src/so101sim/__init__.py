@@ -13,6 +13,7 @@ from .errors import (
 )
 from .model import load_model, model_dir, scene_path
 from .motion import LAB_MOTION, Hold, Move, RunResult, SegmentResult, run_motion
+from .robot import SO101SimFollower, SO101SimFollowerConfig
 from .simulation import Pacer, Simulation
 from .units import JOINT_NAMES, STARTING_POSE, ZERO_POSE
 
@@ -32,6 +33,8 @@ __all__ = [
     "Move",
     "Pacer",
     "RunResult",
+    "SO101SimFollower",
+    "SO101SimFollowerConfig",
     "SegmentResult",
     "Simulation",
     "SimulationDivergedError",
