@@ -18,6 +18,7 @@ from .errors import (
 from .model import load_model, model_dir, scene_path
 from .motion import LAB_MOTION, Hold, Move, RunResult, SegmentResult, run_motion
 from .recording import Recorder, VideoSettings, plot_run
+from .robot import SO101SimFollower, SO101SimFollowerConfig
 from .simulation import Pacer, Simulation
 from .units import JOINT_NAMES, STARTING_POSE, ZERO_POSE
 
@@ -42,6 +43,8 @@ __all__ = [
     "RecordingError",
     "RenderBackendError",
     "RunResult",
+    "SO101SimFollower",
+    "SO101SimFollowerConfig",
     "SegmentResult",
     "Simulation",
     "SimulationDivergedError",

@@ -6,6 +6,7 @@ so101sim check MOTION   simulate a motion headless and judge it: PASS or FAIL
 so101sim hold           hold the starting pose (the lab's first script)
 so101sim view           open the model in MuJoCo's interactive viewer
 so101sim model-path     print the folder of the shipped model
+so101sim teleop         mirror a LeRobot SO-101 leader arm on the sim in real time
 """
 
 from __future__ import annotations
@@ -96,6 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     _add_pose_parser(sub)
     _add_check_parser(sub)
+    _add_teleop_parser(sub)
     return parser
 
 
@@ -338,6 +340,73 @@ def cmd_check(args: argparse.Namespace) -> int:
     )
     print(json.dumps(report.to_dict(), indent=2) if args.json else format_report(report))
     return 0 if report.passed else 1
+
+
+def _add_teleop_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "teleop", help="mirror a LeRobot SO-101 leader arm on the sim in real time (Ctrl-C stops)"
+    )
+    p.add_argument("--port", required=True, help="leader arm's serial port, e.g. /dev/ttyACM0")
+    p.add_argument(
+        "--calibration",
+        help="LeRobot calibration JSON of the leader (default: LeRobot's file for --id if any)",
+    )
+    p.add_argument("--id", help="leader id whose LeRobot calibration file to use")
+    p.add_argument("--fps", type=float, default=60.0, help="ticks per second (default 60)")
+    p.add_argument("--duration", type=float, help="stop after this many seconds (default: never)")
+    p.add_argument("--model", help="MJCF file to load instead of the shipped scene.xml")
+    p.add_argument(
+        "--headless", action="store_true", help="run without the viewer, even with a display"
+    )
+    p.set_defaults(func=cmd_teleop)
+
+
+def cmd_teleop(args: argparse.Namespace) -> int:
+    from . import teleop
+    from .robot import SO101SimFollower, SO101SimFollowerConfig
+
+    if args.calibration:
+        calibration = teleop.load_calibration(args.calibration)
+        print(f"calibration: {args.calibration}")
+    elif args.id and teleop.lerobot_calibration_path(args.id).is_file():
+        path = teleop.lerobot_calibration_path(args.id)
+        calibration = teleop.load_calibration(path)
+        print(f"calibration: {path}")
+    else:
+        calibration = teleop.default_calibration()
+        print(
+            "no calibration file: assuming LeRobot's calibration (middle = 2047 ticks) and "
+            "guessing the gripper's range; pass --calibration for exact values"
+        )
+    use_viewer = not args.headless and has_display()
+    if not args.headless and not use_viewer:
+        print("no display found: running headless (use --headless to say so, xvfb-run to view)")
+    robot = SO101SimFollower(
+        SO101SimFollowerConfig(id="teleop", model=args.model, viewer=use_viewer)
+    )
+    bus = teleop.FeetechLeaderBus(args.port, calibration=calibration)
+    result = None
+    try:
+        with robot:
+            print(f"mirroring the leader on {args.port} at {args.fps:g} Hz; Ctrl-C to stop")
+            result = teleop.teleoperate(
+                robot,
+                bus,
+                calibration,
+                fps=args.fps,
+                duration=args.duration,
+                should_stop=(lambda: not robot.viewer_open) if use_viewer else None,
+            )
+    except KeyboardInterrupt:
+        print("stopped")
+    finally:
+        bus.close()
+    if result is not None:
+        print(
+            f"{result.ticks} ticks in {result.duration:.2f} s "
+            f"({result.late_ticks} slower than {args.fps:g} Hz)"
+        )
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -74,3 +74,45 @@ class RenderBackendError(So101SimError, RuntimeError):
 
 class RecordingError(So101SimError, ValueError):
     """Invalid recording settings (frame size, frame rate, quality preset)."""
+
+
+# ---------------------------------------------------------------------------- robot interface
+class DeviceNotConnectedError(So101SimError, ConnectionError):
+    """A robot (or leader arm) was used before ``connect()`` or after ``disconnect()``.
+
+    Mirrors LeRobot's error of the same name (a ``ConnectionError``), so code that catches
+    LeRobot's kind of error catches this one too.
+    """
+
+    def __init__(
+        self, message: str = "This device is not connected. Try calling `connect()` first."
+    ) -> None:
+        self.message = message
+        super().__init__(message)
+
+
+class DeviceAlreadyConnectedError(So101SimError, ConnectionError):
+    """``connect()`` was called on a robot that is already connected (as in LeRobot)."""
+
+    def __init__(
+        self,
+        message: str = "This device is already connected. Try not calling `connect()` twice.",
+    ) -> None:
+        self.message = message
+        super().__init__(message)
+
+
+class RobotConfigError(So101SimError, ValueError):
+    """A simulated robot's configuration holds a value it cannot use."""
+
+
+class CalibrationError(So101SimError, ValueError):
+    """A leader arm's calibration (LeRobot's JSON format) is missing, malformed or unusable."""
+
+
+class LeaderError(So101SimError, RuntimeError):
+    """The leader arm cannot be reached: SDK not installed, port missing, a motor not answering."""
+
+
+class RateError(So101SimError, ValueError):
+    """A rate (goals or ticks per second) is not a finite number greater than zero."""

@@ -1,0 +1,382 @@
+"""Teleoperation: mirror a LeRobot SO-101 leader arm on the simulated follower.
+
+The leader's six Feetech STS3215 servos (ids 1..6, torque off so the arm can be moved by hand)
+are read with one sync-read of ``Present_Position`` per tick through the Feetech SDK
+(``scservo_sdk``, pip package ``feetech-servo-sdk``, with pyserial: ``pip install
+'so101sim[leader]'``). Raw positions (ticks, 0..4095 per turn) become the arm's units with a
+calibration in LeRobot's JSON format (``{motor: {id, drive_mode, homing_offset, range_min,
+range_max}}``), with LeRobot's formulas:
+
+* body joints, degrees: ``(raw - (range_min + range_max) / 2) * 360 / 4095``;
+* gripper, 0..100: linear over ``[range_min, range_max]``, clamped (``100 - x`` if
+  ``drive_mode``).
+
+``homing_offset`` is not applied in software: LeRobot writes it into each servo, which then
+reports positions with the offset already applied. :func:`teleoperate` runs LeRobot's
+teleoperation loop (observe, read the leader, send, wait to the next tick at ``fps``) on any
+robot with LeRobot's interface, and any bus with :meth:`LeaderBus.read_positions`, so it is
+tested with a fake bus. Nothing here has been tried on a real leader arm.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import math
+import os
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from .errors import CalibrationError, LeaderError
+from .hardware import Clock, check_fps, clock_for, sleep_until
+from .motion import check_duration
+from .units import GRIPPER, GRIPPER_INDEX, JOINT_NAMES, LEROBOT_SUFFIX, default_units
+
+log = logging.getLogger(__name__)
+
+TICKS_PER_TURN = 4096
+MAX_TICK = TICKS_PER_TURN - 1  # 4095, LeRobot's max_res for the STS3215
+MOTOR_IDS: dict[str, int] = {name: i + 1 for i, name in enumerate(JOINT_NAMES)}
+"""Servo id of each joint on LeRobot's SO-101 (shoulder_pan 1 ... gripper 6)."""
+PRESENT_POSITION = (56, 2)  # (address, bytes) in the STS3215 control table
+TORQUE_ENABLE = (40, 1)
+HOMING_OFFSET = (31, 2)
+DEFAULT_BAUDRATE = 1_000_000
+DEFAULT_FPS = 60.0  # LeRobot's teleoperate default
+LEADER_NAME = "so_leader"  # LeRobot's class name for the SO-101 leader (calibration folder)
+
+
+@dataclass(frozen=True)
+class MotorCalibration:
+    """One motor's calibration, as LeRobot stores it."""
+
+    id: int
+    drive_mode: int
+    homing_offset: int
+    range_min: int
+    range_max: int
+
+
+def default_calibration() -> dict[str, MotorCalibration]:
+    """A calibration to use without a file, assuming the leader was calibrated by LeRobot.
+
+    LeRobot's calibration makes the middle pose read 2047 on every servo, so body joints get
+    the range 0..4095 (middle 2047.5). The gripper's range is a guess: the model's gripper
+    range (−10°..100° from the middle) around 2047. Pass the real file for exact values.
+    """
+    units = default_units()
+    g_lo = round(2047 + math.degrees(units.lower[GRIPPER_INDEX]) * MAX_TICK / 360)
+    g_hi = round(2047 + math.degrees(units.upper[GRIPPER_INDEX]) * MAX_TICK / 360)
+    out = {n: MotorCalibration(MOTOR_IDS[n], 0, 0, 0, MAX_TICK) for n in JOINT_NAMES}
+    out[GRIPPER] = MotorCalibration(MOTOR_IDS[GRIPPER], 0, 0, g_lo, g_hi)
+    return out
+
+
+def _int_field(motor: str, key: str, value: object) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise CalibrationError(
+            f"calibration of {motor!r}: {key} = {value!r} is not an integer; expected the "
+            "integer LeRobot writes (servo ticks)"
+        )
+    return value
+
+
+def parse_calibration(data: object) -> dict[str, MotorCalibration]:
+    """Validate LeRobot's calibration dict ``{motor: {id, drive_mode, homing_offset,
+    range_min, range_max}}`` for the six SO-101 motors.
+
+    Raises:
+        CalibrationError: a motor missing or unknown, a field missing or not an integer, or
+            ``range_min >= range_max`` (LeRobot refuses equal ends too).
+    """
+    fields = ("id", "drive_mode", "homing_offset", "range_min", "range_max")
+    if not isinstance(data, Mapping):
+        raise CalibrationError(
+            f"a calibration must be a JSON object keyed by motor name ({', '.join(JOINT_NAMES)})"
+        )
+    unknown = sorted(set(data) - set(JOINT_NAMES))
+    missing = [n for n in JOINT_NAMES if n not in data]
+    if unknown or missing:
+        raise CalibrationError(
+            f"calibration motors do not match the SO-101's: unknown {unknown or 'none'}, "
+            f"missing {missing or 'none'}; expected exactly {', '.join(JOINT_NAMES)}"
+        )
+    out: dict[str, MotorCalibration] = {}
+    for name in JOINT_NAMES:
+        entry = data[name]
+        if not isinstance(entry, Mapping) or any(f not in entry for f in fields):
+            raise CalibrationError(
+                f"calibration of {name!r} must hold the integers {', '.join(fields)}"
+            )
+        values = {f: _int_field(name, f, entry[f]) for f in fields}
+        cal = MotorCalibration(**values)
+        if not 0 <= cal.range_min < cal.range_max <= MAX_TICK:
+            raise CalibrationError(
+                f"calibration of {name!r}: range_min = {cal.range_min}, range_max = "
+                f"{cal.range_max}; expected 0 <= range_min < range_max <= {MAX_TICK}"
+            )
+        out[name] = cal
+    return out
+
+
+def load_calibration(path: str | Path) -> dict[str, MotorCalibration]:
+    """Read a LeRobot calibration JSON file (e.g. ``~/.cache/huggingface/lerobot/calibration/
+    teleoperators/so_leader/<id>.json``).
+
+    Raises:
+        CalibrationError: the file is missing, not JSON, or not a valid SO-101 calibration.
+    """
+    p = Path(path).expanduser()
+    try:
+        text = p.read_text()
+    except OSError as exc:
+        raise CalibrationError(
+            f"cannot read the calibration file {str(p)!r} ({exc.strerror}); expected LeRobot's "
+            "calibration JSON for the leader arm"
+        ) from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise CalibrationError(f"calibration file {str(p)!r} is not valid JSON: {exc}") from None
+    return parse_calibration(data)
+
+
+def lerobot_calibration_path(leader_id: str) -> Path:
+    """Where LeRobot keeps the leader calibration for ``leader_id`` (honours
+    ``HF_LEROBOT_CALIBRATION``, ``HF_LEROBOT_HOME`` and ``HF_HOME`` as LeRobot does)."""
+    root = os.environ.get("HF_LEROBOT_CALIBRATION")
+    if root is None:
+        home = os.environ.get("HF_LEROBOT_HOME")
+        if home is None:
+            hf = os.environ.get("HF_HOME", str(Path("~/.cache/huggingface")))
+            home = str(Path(hf) / "lerobot")
+        root = str(Path(home) / "calibration")
+    return Path(root).expanduser() / "teleoperators" / LEADER_NAME / f"{leader_id}.json"
+
+
+def ticks_to_pose(
+    raw: Mapping[str, int | float], calibration: Mapping[str, MotorCalibration]
+) -> dict[str, float]:
+    """Raw servo positions -> the arm's units (LeRobot's normalisation in degrees mode).
+
+    Body joints: ``(raw - (min + max) / 2) * 360 / 4095`` degrees (not clamped, as LeRobot);
+    gripper: ``(clamp(raw, min, max) - min) / (max - min) * 100`` (``100 - x`` if
+    ``drive_mode``). Returns ``{joint name: value}`` for the joints in ``raw``.
+    """
+    out: dict[str, float] = {}
+    for name, value in raw.items():
+        cal = calibration[name]
+        lo, hi = cal.range_min, cal.range_max
+        if name == GRIPPER:
+            b = min(hi, max(lo, value))
+            norm = (b - lo) / (hi - lo) * 100.0
+            out[name] = 100.0 - norm if cal.drive_mode else norm
+        else:
+            out[name] = (value - (lo + hi) / 2.0) * 360.0 / MAX_TICK
+    return out
+
+
+def decode_sign_magnitude(value: int, sign_bit: int) -> int:
+    """Feetech's sign-magnitude encoding -> a signed integer (bit ``sign_bit`` is the sign)."""
+    return -(value & ~(1 << sign_bit)) if value & (1 << sign_bit) else value
+
+
+class LeaderBus(Protocol):
+    """What :func:`teleoperate` needs of the leader: raw positions, and closing."""
+
+    def read_positions(self) -> dict[str, int]:
+        """``{joint name: Present_Position in ticks}`` for the six motors."""
+        ...
+
+    def close(self) -> None: ...
+
+
+class FeetechLeaderBus:
+    """The leader arm on a serial port, through the Feetech SDK (protocol 0, 1 Mbaud).
+
+    Opening disables every motor's torque (as LeRobot's leader ``configure()`` does) so the
+    arm can be moved by hand, and warns if a servo's stored homing offset differs from the
+    calibration's. Not tried on hardware.
+
+    Raises:
+        LeaderError: the SDK is not installed, the port cannot be opened, or a motor does not
+            answer.
+    """
+
+    def __init__(
+        self,
+        port: str,
+        *,
+        calibration: Mapping[str, MotorCalibration] | None = None,
+        baudrate: int = DEFAULT_BAUDRATE,
+        sdk: Any = None,
+    ) -> None:
+        self._sdk = sdk if sdk is not None else _import_sdk()
+        scs = self._sdk
+        self.port = port
+        self.ids = {n: (calibration[n].id if calibration else MOTOR_IDS[n]) for n in JOINT_NAMES}
+        self._port = scs.PortHandler(port)
+        try:
+            opened = self._port.openPort() and self._port.setBaudRate(baudrate)
+        except Exception as exc:  # serial.SerialException and the like
+            raise LeaderError(
+                f"cannot open the leader arm's port {port!r}: {exc}; expected the serial port "
+                "of the leader's controller board (e.g. /dev/ttyACM0; `lerobot-find-port` "
+                "finds it)"
+            ) from None
+        if not opened:
+            raise LeaderError(f"cannot open {port!r} at {baudrate} baud")
+        self._packet = scs.PacketHandler(0)
+        addr, size = PRESENT_POSITION
+        self._reader = scs.GroupSyncRead(self._port, self._packet, addr, size)
+        for motor_id in self.ids.values():
+            self._reader.addParam(motor_id)
+        self._success = scs.COMM_SUCCESS
+        try:
+            self._configure(calibration)
+        except LeaderError:
+            self.close()
+            raise
+
+    def _configure(self, calibration: Mapping[str, MotorCalibration] | None) -> None:
+        for name, motor_id in self.ids.items():
+            result, _error = self._packet.write1ByteTxRx(self._port, motor_id, TORQUE_ENABLE[0], 0)
+            if result != self._success:
+                raise LeaderError(
+                    f"motor {name!r} (id {motor_id}) on {self.port!r} does not answer "
+                    f"({self._packet.getTxRxResult(result)}); check power and wiring"
+                )
+            if calibration is None:
+                continue
+            raw, result, _error = self._packet.read2ByteTxRx(self._port, motor_id, HOMING_OFFSET[0])
+            if result == self._success:
+                offset = decode_sign_magnitude(raw, 11)
+                if offset != calibration[name].homing_offset:
+                    log.warning(
+                        "leader motor %r stores homing offset %d but the calibration says %d: "
+                        "positions may be off; recalibrate with lerobot-calibrate",
+                        name,
+                        offset,
+                        calibration[name].homing_offset,
+                    )
+
+    def read_positions(self) -> dict[str, int]:
+        addr, size = PRESENT_POSITION
+        result = self._reader.txRxPacket()
+        if result != self._success:
+            raise LeaderError(
+                f"sync read of Present_Position failed on {self.port!r}: "
+                f"{self._packet.getTxRxResult(result)}"
+            )
+        return {
+            name: decode_sign_magnitude(self._reader.getData(motor_id, addr, size), 15)
+            for name, motor_id in self.ids.items()
+        }
+
+    def close(self) -> None:
+        with contextlib.suppress(Exception):
+            self._port.closePort()
+
+
+def _import_sdk() -> Any:
+    try:
+        import scservo_sdk
+    except ImportError:
+        raise LeaderError(
+            "the Feetech SDK is not installed; install the leader extra: "
+            "pip install 'so101sim[leader]' (feetech-servo-sdk and pyserial)"
+        ) from None
+    return scservo_sdk
+
+
+@dataclass(frozen=True)
+class TeleopResult:
+    """How a teleoperation session went."""
+
+    ticks: int
+    late_ticks: int  # ticks whose work took longer than 1 / fps
+    duration: float  # on the robot's clock
+    last_action: dict[str, float]
+
+
+def teleoperate(
+    robot: Any,
+    leader: LeaderBus,
+    calibration: Mapping[str, MotorCalibration] | None = None,
+    *,
+    fps: float = DEFAULT_FPS,
+    duration: float | None = None,
+    max_ticks: int | None = None,
+    clock: Clock | None = None,
+    should_stop: Callable[[], bool] | None = None,
+) -> TeleopResult:
+    """Mirror ``leader`` on ``robot`` at ``fps`` ticks per second, as LeRobot's teleoperation
+    loop does: read the robot's observation, read the leader, send its pose, wait to the
+    next tick (absolute deadlines on the robot's clock).
+
+    Leader values beyond the follower's joint limits are clipped to them here (silently, at
+    debug level), so the follower does not warn 60 times a second. Stops after ``duration``
+    seconds, ``max_ticks`` ticks, or when ``should_stop()`` is true; otherwise runs until
+    interrupted (Ctrl-C).
+    """
+    fps = check_fps(fps)
+    if duration is not None:
+        duration = check_duration(duration)
+    calibration = calibration if calibration is not None else default_calibration()
+    clock = clock if clock is not None else clock_for(robot)
+    lo, hi = default_units().limits
+    period = 1.0 / fps
+    t0 = clock.now()
+    ticks = late = 0
+    action: dict[str, float] = {}
+    while True:
+        tick_start = clock.now()
+        robot.get_observation()
+        pose = ticks_to_pose(leader.read_positions(), calibration)
+        values = np.array([pose[n] for n in JOINT_NAMES])
+        clipped = np.clip(values, lo, hi)
+        if np.any(clipped != values):
+            log.debug("leader beyond the follower's limits; clipped %s", values)
+        action = {f"{n}{LEROBOT_SUFFIX}": float(clipped[i]) for i, n in enumerate(JOINT_NAMES)}
+        robot.send_action(action)
+        ticks += 1
+        if clock.now() - tick_start > period:
+            late += 1
+        sleep_until(clock, t0 + ticks * period)
+        elapsed = clock.now() - t0
+        if duration is not None and elapsed >= duration - 1e-9:
+            break
+        if max_ticks is not None and ticks >= max_ticks:
+            break
+        if should_stop is not None and should_stop():
+            break
+    if late:
+        log.warning(
+            "teleoperation ran slower than %g Hz on %d of %d ticks; control may be unstable",
+            fps,
+            late,
+            ticks,
+        )
+    return TeleopResult(ticks=ticks, late_ticks=late, duration=clock.now() - t0, last_action=action)
+
+
+__all__ = [
+    "DEFAULT_FPS",
+    "MOTOR_IDS",
+    "FeetechLeaderBus",
+    "LeaderBus",
+    "MotorCalibration",
+    "TeleopResult",
+    "decode_sign_magnitude",
+    "default_calibration",
+    "lerobot_calibration_path",
+    "load_calibration",
+    "parse_calibration",
+    "teleoperate",
+    "ticks_to_pose",
+]
