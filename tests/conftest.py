@@ -5,6 +5,9 @@ os.environ.pop("DISPLAY", None)
 os.environ.pop("WAYLAND_DISPLAY", None)
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+import shutil
+import subprocess
+
 import pytest
 
 from so101sim import Simulation
@@ -14,3 +17,26 @@ from so101sim import Simulation
 def sim() -> Simulation:
     """A fresh simulation of the shipped model, arm at its rest pose, time 0."""
     return Simulation()
+
+
+@pytest.fixture(scope="session")
+def xvfb():
+    """A virtual X display for the real viewer (Xvfb is installed by .ci/run)."""
+    if shutil.which("Xvfb") is None:
+        pytest.skip("Xvfb is not installed (apt-get install -y xvfb)")
+    read_fd, write_fd = os.pipe()
+    proc = subprocess.Popen(  # Xvfb picks a free display number and writes it to write_fd
+        ["Xvfb", "-displayfd", str(write_fd), "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        pass_fds=(write_fd,),
+    )
+    os.close(write_fd)
+    with os.fdopen(read_fd) as f:
+        num = f.readline().strip()
+    if not num:
+        proc.kill()
+        pytest.fail("Xvfb did not start")
+    yield f":{num}"
+    proc.terminate()
+    proc.wait(timeout=10)

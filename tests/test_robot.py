@@ -5,6 +5,9 @@ from __future__ import annotations
 import logging
 import math
 import os
+import subprocess
+import sys
+import textwrap
 import threading
 import time
 
@@ -418,17 +421,31 @@ def test_initial_pose_is_partial_over_the_starting_pose():
 
 
 @pytest.mark.viewer
-@pytest.mark.skipif(not os.environ.get("DISPLAY"), reason="needs a display (run under xvfb-run)")
-def test_viewer_is_synced_and_closed_with_the_robot():
-    before = set(threading.enumerate())
-    robot = SO101SimFollower(SO101SimFollowerConfig(viewer=True))
-    with robot:
-        assert robot.viewer_open
-        robot.send_action({"shoulder_pan.pos": 10.0})
-        time.sleep(0.3)
-        assert robot.get_observation()["shoulder_pan.pos"] == pytest.approx(10.0, abs=1.0)
-    assert not robot.viewer_open
-    assert set(threading.enumerate()) == before  # physics and viewer threads both ended
+def test_viewer_is_synced_and_closed_with_the_robot(xvfb):
+    code = textwrap.dedent(
+        """
+        import threading, time
+        from so101sim import SO101SimFollower, SO101SimFollowerConfig
+
+        before = set(threading.enumerate())
+        robot = SO101SimFollower(SO101SimFollowerConfig(viewer=True))
+        with robot:
+            assert robot.viewer_open
+            robot.send_action({"shoulder_pan.pos": 10.0})
+            time.sleep(0.3)
+            pan = robot.get_observation()["shoulder_pan.pos"]
+        assert not robot.viewer_open
+        assert set(threading.enumerate()) == before  # physics and viewer threads both ended
+        print("pan", round(pan, 1))
+        """
+    )
+    env = {**os.environ, "DISPLAY": xvfb}
+    env.pop("MUJOCO_GL", None)
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120
+    )
+    assert out.returncode == 0, out.stderr
+    assert abs(float(out.stdout.split()[-1]) - 10.0) <= 1.0
 
 
 def test_gripper_reading_is_clamped_to_0_100_as_lerobot_does(caplog):

@@ -1,5 +1,4 @@
 import os
-import shutil
 import subprocess
 import sys
 import textwrap
@@ -44,29 +43,6 @@ def test_frame_arm_uses_the_scenes_view():
     cam = mujoco.MjvCamera()
     viewer.frame_arm(cam)
     assert cam.azimuth == 160 and cam.elevation == -20
-
-
-@pytest.fixture(scope="module")
-def xvfb():
-    """A virtual X display for the real viewer (Xvfb is installed by .ci/run)."""
-    if shutil.which("Xvfb") is None:
-        pytest.skip("Xvfb is not installed (apt-get install -y xvfb)")
-    read_fd, write_fd = os.pipe()
-    proc = subprocess.Popen(  # Xvfb picks a free display number and writes it to write_fd
-        ["Xvfb", "-displayfd", str(write_fd), "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        pass_fds=(write_fd,),
-    )
-    os.close(write_fd)
-    with os.fdopen(read_fd) as f:
-        num = f.readline().strip()
-    if not num:
-        proc.kill()
-        pytest.fail("Xvfb did not start")
-    yield f":{num}"
-    proc.terminate()
-    proc.wait(timeout=10)
 
 
 def _run(code: str, display: str) -> subprocess.CompletedProcess:

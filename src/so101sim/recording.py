@@ -667,7 +667,12 @@ def plot_run(
     err_ax.set_title("tracking error |commanded − measured| (degrees; gripper 0–100)")
     err_ax.set_xlabel("simulated time (s)")
     err_ax.grid(alpha=0.3)
-    err_ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.3), fontsize="small", ncol=6)
+    fig.legend(
+        *err_ax.get_legend_handles_labels(),
+        loc="outside lower center",
+        fontsize="small" if width >= 1000 else "x-small",
+        ncol=6 if width >= 1200 else 3,
+    )
     for k, (phase, t0, t1) in enumerate(run.phases):
         colour = _PHASE_COLOURS[k % len(_PHASE_COLOURS)]
         for ax in (*axes, err_ax):
