@@ -543,19 +543,9 @@ class SO101SimFollower:
     def _open_viewer(self) -> None:
         from .viewer import open_viewer
 
+        # open_viewer closes the window and waits for its render thread when the stack closes
         stack = contextlib.ExitStack()
-        # MuJoCo's passive viewer renders on a daemon thread that outlives close() for a
-        # moment; exiting Python while it tears down can crash the process, so after closing
-        # (callbacks run last-in first-out) wait for it.
-        ui_threads: list[threading.Thread] = []
-        stack.callback(_join_threads, ui_threads)
-        before = set(threading.enumerate())
-        try:
-            self._viewer = stack.enter_context(open_viewer(self._sim.model, self._sim.data))
-        except BaseException:
-            stack.close()
-            raise
-        ui_threads.extend(t for t in threading.enumerate() if t not in before)
+        self._viewer = stack.enter_context(open_viewer(self._sim.model, self._sim.data))
         self._viewer_stack = stack
         self._last_sync = -math.inf
 
@@ -581,14 +571,6 @@ class SO101SimFollower:
             log.error("%s: the physics thread stopped: %s", self, exc)
         if pacer.lag_events:
             log.debug("%s: physics fell behind real time %d times", self, pacer.lag_events)
-
-
-def _join_threads(threads: list[threading.Thread], timeout: float = 5.0) -> None:
-    deadline = time.monotonic() + timeout
-    for t in threads:
-        t.join(max(0.0, deadline - time.monotonic()))
-        if t.is_alive():
-            log.warning("viewer thread %s did not stop within %.0f s", t.name, timeout)
 
 
 def parse_action(action: object) -> dict[str, float]:
