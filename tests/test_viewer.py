@@ -138,3 +138,24 @@ def test_interactive_viewer_starts_on_the_shipped_model(xvfb, cmd):
         proc.communicate()
         return
     pytest.fail(f"viewer exited early with {proc.returncode}: {err}")
+
+
+@pytest.mark.viewer
+def test_recording_while_the_viewer_is_open(xvfb, tmp_path):
+    import imageio.v3 as iio
+
+    env = {**os.environ, "DISPLAY": xvfb}
+    env.pop("MUJOCO_GL", None)
+    video = tmp_path / "lab.mp4"
+    out = subprocess.run(
+        [sys.executable, "-m", "so101sim", "run", "--speed", "8", "--record", str(video)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
+    assert out.returncode == 0, out.stderr
+    assert "headless" not in out.stdout  # the viewer was open
+    frames = iio.imread(video, index=None)
+    assert frames.shape == (181, 480, 640, 3)
+    assert frames[0].std() > 5 and not (frames[0] == frames[90]).all()
