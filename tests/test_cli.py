@@ -116,3 +116,18 @@ def test_teleop_needs_a_port(capsys):
     with pytest.raises(SystemExit):
         cli.main(["teleop"])
     assert "--port" in capsys.readouterr().err
+
+
+def test_bad_settings_fail_before_anything_runs_or_is_written(capsys, tmp_path):
+    video = tmp_path / "a.mp4"
+    assert main(["hold", "--duration", "nan", "--record", str(video)]) == 2
+    err = capsys.readouterr().err
+    assert "duration = nan" in err and "Traceback" not in err
+    assert not video.exists() and list(tmp_path.iterdir()) == []
+    assert main(["run", "--speed", "0"]) == 2
+    assert "speed = 0.0 is invalid" in capsys.readouterr().err
+
+
+def test_recording_headless_still_says_it_is_headless(capsys, tmp_path):
+    assert main(["hold", "--duration", "0.1", "--log", str(tmp_path / "h.csv")]) == 0
+    assert "running headless" in capsys.readouterr().out

@@ -127,3 +127,12 @@ def test_bad_input_raises_and_leaves_the_data_alone(md):
     np.testing.assert_array_equal(d.ctrl, ctrl)
     np.testing.assert_array_equal(d.qpos, qpos)
     assert d.time == 0.0
+
+
+def test_a_command_written_straight_to_ctrl_is_held(md):
+    m, d = md
+    set_initial_pose(d, STARTING_POSE)
+    d.ctrl[:] = convert_to_list(ZERO_POSE)  # as the handout's own send_position_command does
+    hold_position(m, d, None, 2.0)
+    np.testing.assert_allclose(d.ctrl, convert_to_list(ZERO_POSE))
+    assert abs(convert_to_dictionary(d.qpos)["shoulder_lift"]) < 1.0

@@ -134,7 +134,7 @@ def test_step_errors():
             with pytest.raises(DurationError):
                 robot.step(bad)
     realtime = SO101SimFollower()
-    with realtime, pytest.raises(So101SimError, match="only in lockstep mode"):
+    with realtime, pytest.raises(RobotConfigError, match="only in lockstep mode"):
         realtime.step(0.1)
 
 

@@ -190,3 +190,52 @@ def test_model_path_is_accepted(tmp_path):
     sim = Simulation(scene_path())
     assert sim.model is load_model()
     assert math.isclose(sim.pose()["shoulder_lift"], -98.0)
+
+
+def test_viewer_keeps_pacing_after_a_reset(sim):
+    clock = FakeClock()
+    viewer = FakeViewer()
+    sim.observers.append(ViewerObserver(viewer, Pacer(clock=clock, sleep=clock.sleep), fps=50))
+    sim.move_to(ZERO_POSE, 1.0)
+    syncs, wall = viewer.syncs, clock.now
+    sim.reset()  # simulated time goes back to 0
+    sim.move_to(ZERO_POSE, 1.0)
+    assert viewer.syncs - syncs == 51  # synced again at its rate
+    assert clock.now - wall == pytest.approx(1.0, abs=1e-9)  # and paced in real time again
+
+
+def test_a_target_written_to_ctrl_directly_is_honoured(sim):
+    import mujoco
+
+    from so101sim.units import default_units
+
+    sim.data.ctrl[:6] = default_units().to_radians(np.array([0.0, 0, 0, 0, 0, 0]))
+    assert sim.commanded() == pytest.approx(ZERO_POSE)
+    sim.hold(2.0)  # holds what is in ctrl, not the earlier target
+    assert sim.pose()["shoulder_lift"] == pytest.approx(0.0, abs=1.0)
+    fresh = mujoco.MjData(sim.model)  # never commanded: targets untouched
+    from so101sim.simulation import commanded_target
+
+    assert commanded_target(fresh) is None
+
+
+def test_nan_state_is_reported_even_without_a_mujoco_warning(sim):
+    from so101sim.simulation import _check_divergence
+
+    before = [0, 0, 0]
+    with pytest.raises(SimulationDivergedError, match="NaN or inf"):
+        _check_divergence(sim.model, sim.data, before, np.array([[0.0, np.nan, 0, 0, 0, 0]]))
+
+
+def test_commanded_reads_the_value_commanded(sim):
+    sim.command({"wrist_flex": 60.0, "gripper": 33.3})
+    assert sim.commanded()["wrist_flex"] == 60.0
+    assert sim.commanded()["gripper"] == 33.3
+
+
+def test_step_count_must_be_a_whole_number(sim):
+    from so101sim.errors import SettingError
+
+    for bad in (-1, 2.5, True):
+        with pytest.raises(SettingError, match="whole number of steps"):
+            sim.step(bad)

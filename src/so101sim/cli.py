@@ -21,7 +21,15 @@ from contextlib import ExitStack
 from . import __version__
 from .errors import So101SimError
 from .model import arm_units, load_model, model_dir
-from .motion import Hold, RunResult, SegmentResult, run_motion
+from .motion import (
+    Hold,
+    RunResult,
+    SegmentResult,
+    Step,
+    check_duration,
+    run_motion,
+    validate_steps,
+)
 from .motionfile import lab_motion_path, load_motion
 from .simulation import Pacer, Simulation, ViewerObserver
 from .trajectory import check_limited_moves
@@ -101,11 +109,13 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _run_steps(args: argparse.Namespace, steps, start: Pose = STARTING_POSE) -> int:
+def _run_steps(args: argparse.Namespace, steps: Sequence[Step], start: Pose = STARTING_POSE) -> int:
+    pacer = Pacer(args.speed)  # checks --speed before anything opens
     sim = Simulation(args.model, initial_pose=start)
+    validate_steps(sim.model, steps)  # every target and duration, before anything runs
     recorder, bar = recorder_from_args(args, sim, sum(s.duration for s in steps))  # checks paths
     use_viewer = not args.headless and has_display()
-    if not args.headless and not use_viewer and recorder is None:
+    if not args.headless and not use_viewer:
         print("no display found: running headless (use --headless to say so, xvfb-run to view)")
     with ExitStack() as stack:
         observers = []
@@ -114,7 +124,7 @@ def _run_steps(args: argparse.Namespace, steps, start: Pose = STARTING_POSE) -> 
             observers.extend(recorder.observers)
         if use_viewer:
             handle = stack.enter_context(open_viewer(sim.model, sim.data))
-            observers.append(ViewerObserver(handle, Pacer(args.speed)))
+            observers.append(ViewerObserver(handle, pacer))
         result = run_motion(sim.model, sim.data, steps, observers=observers)
     print_run(result)
     return 0
@@ -221,8 +231,9 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_hold(args: argparse.Namespace) -> int:
+    duration = check_duration(args.duration, "hold duration")
     print(f"holding the starting pose: {format_pose(STARTING_POSE)}")
-    return _run_steps(args, (Hold(args.duration, phase="hold"),))
+    return _run_steps(args, (Hold(duration, phase="hold"),))
 
 
 def cmd_view(args: argparse.Namespace) -> int:

@@ -27,6 +27,11 @@ class DurationError(So101SimError, ValueError):
     """A duration is not a finite number greater than zero."""
 
 
+class SettingError(So101SimError, ValueError):
+    """A setting that is not valid: a playback speed, a step count, a profile name, limits or
+    thresholds. The message gives the valid values."""
+
+
 class ModelError(So101SimError):
     """A model file does not exist, does not compile, or lacks the SO-101 joints."""
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from .errors import DurationError, So101SimError
+from .errors import DurationError, SettingError
 from .model import arm_units
 from .simulation import Observer, Trace, advance, commanded_target, measured_radians
 from .trajectory import LimitedProfile
@@ -43,7 +43,14 @@ def check_duration(duration: object, what: str = "duration") -> float:
 
 def steps_for(duration: float, timestep: float) -> int:
     """Physics steps in ``duration`` seconds: ``round(duration / timestep)``, at least 1."""
-    return max(1, round(check_duration(duration) / timestep))
+    n = round(check_duration(duration) / timestep)
+    if n == 0:
+        log.warning(
+            "duration %g s is shorter than half a physics step (%g s); it takes one step",
+            duration,
+            timestep,
+        )
+    return max(1, n)
 
 
 def _shape(fn: Callable[[np.ndarray], np.ndarray]) -> Profile:
@@ -78,13 +85,13 @@ acceleration and jerk limits (:mod:`so101sim.trajectory`)."""
 
 def get_profile(name: str | Profile) -> Profile:
     """The profile called ``name`` (a profile function is returned as is); raises
-    So101SimError listing the valid names."""
+    SettingError listing the valid names."""
     if callable(name):
         return name
     try:
         return PROFILES[name]
     except KeyError:
-        raise So101SimError(
+        raise SettingError(
             f"unknown profile {name!r}; valid profiles are {', '.join(sorted(PROFILES))}"
         ) from None
 
@@ -175,7 +182,7 @@ def plan_move(
     """Validate a move and compute all its targets: ``(start, targets)`` in arm units.
 
     Raises (before anything moves):
-        JointNameError, JointValueError, JointLimitError, DurationError, So101SimError.
+        JointNameError, JointValueError, JointLimitError, DurationError, SettingError.
     """
     units = arm_units(m)
     goal = units.pose_to_array(target, clip=clip)

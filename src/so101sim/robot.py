@@ -453,12 +453,12 @@ class SO101SimFollower:
 
         Raises:
             DeviceNotConnectedError: not connected.
-            So101SimError: called in real-time mode (there, the physics runs on its own).
+            RobotConfigError: called in real-time mode (there, the physics runs on its own).
             DurationError: ``seconds`` is not a finite number >= 0.
         """
         self._check_connected()
         if self.config.mode != "lockstep":
-            raise So101SimError(
+            raise RobotConfigError(
                 "step() advances simulated time only in lockstep mode; in real-time mode the "
                 "physics runs on its own: wait with time.sleep instead"
             )

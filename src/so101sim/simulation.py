@@ -27,7 +27,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout as _rollout
 
-from .errors import SimulationDivergedError
+from .errors import SettingError, SimulationDivergedError
 from .model import ArmIndex, arm_index, arm_units, load_model
 from .units import STARTING_POSE, ArmUnits, Pose
 
@@ -46,20 +46,25 @@ _DIVERGENCE_WARNINGS = (
 
 
 # ---------------------------------------------------------------------------- commanded target
-_commanded: weakref.WeakKeyDictionary[mujoco.MjData, np.ndarray] = weakref.WeakKeyDictionary()
+# The position targets live in d.ctrl, where MuJoCo reads them, so that a target written there
+# directly (as the handout's own helpers do) is honoured. This set only records which MjData
+# have been commanded through so101sim, to tell "never commanded" from "commanded to 0".
+_commanded: weakref.WeakSet[mujoco.MjData] = weakref.WeakSet()
 
 
 def commanded_target(d: mujoco.MjData) -> np.ndarray | None:
-    """The last target (radians, arm joint order) commanded on ``d``, or None before any."""
-    q = _commanded.get(d)
-    return None if q is None else q.copy()
+    """The arm's current position targets (radians, arm joint order), read from ``d.ctrl``;
+    None if nothing was ever commanded (targets untouched since the data was made)."""
+    q = d.ctrl[arm_index(d.model).actuator]
+    if d not in _commanded and not q.any():
+        return None
+    return q.copy()
 
 
 def set_commanded_target(m: mujoco.MjModel, d: mujoco.MjData, q: np.ndarray) -> None:
     """Command the arm's position actuators to ``q`` (radians, arm joint order)."""
-    q = np.array(q, dtype=float)
     d.ctrl[arm_index(m).actuator] = q
-    _commanded[d] = q
+    _commanded.add(d)
 
 
 def measured_radians(m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
@@ -85,8 +90,15 @@ class Pacer:
         sleep: Callable[[float], Any] = time.sleep,
         max_lag: float = 0.25,
     ) -> None:
-        if not (math.isfinite(speed) and speed > 0):
-            raise ValueError(f"speed must be a finite number > 0, got {speed!r}")
+        if (
+            isinstance(speed, bool)
+            or not isinstance(speed, int | float)
+            or not (math.isfinite(speed) and speed > 0)
+        ):
+            raise SettingError(
+                f"speed = {speed!r} is invalid; expected a finite multiple of real time > 0 "
+                "(1 = real time, 0.5 = half speed)"
+            )
         self.speed = speed
         self.clock = clock
         self.sleep = sleep
@@ -143,7 +155,11 @@ class Observer:
     * :meth:`on_time`: called with the live model and data; return False to stop the run
       (a viewer that was closed).
     * :meth:`on_steps`: each block of steps, as they are taken, with the phase's name.
+    * :meth:`on_start`: once before each run of steps, with the live model and data.
     """
+
+    def on_start(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        return None
 
     def next_time(self) -> float:
         return math.inf
@@ -164,6 +180,13 @@ class ViewerObserver(Observer):
         self.pacer = pacer if pacer is not None else Pacer()
         self.period = 1.0 / fps
         self._next = -math.inf
+        self._last = -math.inf
+
+    def on_start(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        if d.time < self._last:  # the clock went back (a reset): start a new timeline
+            log.debug("simulated time went back to %.3f s; re-anchoring the viewer", d.time)
+            self._next = -math.inf
+            self.pacer.reset()
 
     def next_time(self) -> float:
         return self._next
@@ -173,6 +196,7 @@ class ViewerObserver(Observer):
             return False
         self.pacer.wait(d.time)
         self.viewer.sync()
+        self._last = d.time
         self._next = d.time + self.period - 1e-9
         return True
 
@@ -276,6 +300,8 @@ def advance(
     done = 0
     completed = True
     warn_before = [d.warning[w].number for w in _DIVERGENCE_WARNINGS]
+    for o in observers:
+        o.on_start(m, d)
     while done < n:
         t_next = min((o.next_time() for o in observers), default=math.inf)
         if t_next <= d.time + 1e-12:
@@ -289,7 +315,6 @@ def advance(
             times[done : done + k] = states[:, 0]
             qpos[done : done + k] = states[:, qpos_cols]
             _check_divergence(m, d, warn_before, qpos[done : done + k])
-            _commanded[d] = targets[done + k - 1].copy()
             block = Trace(times[done : done + k], targets[done : done + k], qpos[done : done + k])
             done += k
             for o in observers:
@@ -299,8 +324,8 @@ def advance(
                 completed = False
         if not completed:
             break
-    if n and done:
-        _commanded[d] = targets[done - 1].copy()
+    if done:
+        _commanded.add(d)
     return Trace(times[:done], targets[:done], qpos[:done], completed)
 
 
@@ -357,8 +382,9 @@ class Simulation:
         return self.units.from_radians(measured_radians(self.model, self.data))
 
     def commanded(self) -> dict[str, float]:
-        """The last commanded target (the measured pose before any command)."""
-        return self.units.array_to_pose(self.commanded_array())
+        """The last commanded target (the measured pose before any command), rounded to 1e-9
+        so that a commanded 60 reads 60, not 59.99999999999999 after the trip through radians."""
+        return self.units.array_to_pose(np.round(self.commanded_array(), 9) + 0.0)
 
     def commanded_array(self) -> np.ndarray:
         q = commanded_target(self.data)
@@ -392,15 +418,15 @@ class Simulation:
         """Back to time 0 at the initial pose."""
         with self.lock:
             mujoco.mj_resetData(self.model, self.data)
-            _commanded.pop(self.data, None)
+            _commanded.discard(self.data)
         if self.initial_pose is not None:
             self.set_pose(self.initial_pose)
 
     # -- stepping
     def step(self, n: int = 1, *, viewer: Any = None) -> Trace:
         """Take ``n`` physics steps holding the current target."""
-        if n < 0:
-            raise ValueError(f"n must be >= 0, got {n}")
+        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 0:
+            raise SettingError(f"n = {n!r} is invalid; expected a whole number of steps >= 0")
         target = self.units.to_radians(self.commanded_array())
         with self.lock:
             return advance(
