@@ -15,8 +15,9 @@ import argparse
 import contextlib
 import logging
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from contextlib import ExitStack
+from typing import TYPE_CHECKING
 
 from . import __version__
 from .errors import So101SimError
@@ -35,6 +36,13 @@ from .simulation import Pacer, Simulation, ViewerObserver
 from .trajectory import check_limited_moves
 from .units import GRIPPER, STARTING_POSE, Pose, format_pose
 from .viewer import has_display, open_viewer, view
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
+
+    from .recording import Recorder
+
+SubParsers = argparse._SubParsersAction  # the object add_subparsers() returns
 
 log = logging.getLogger("so101sim")
 
@@ -161,7 +169,9 @@ def add_recording_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--force", action="store_true", help="overwrite existing output files")
 
 
-def recorder_from_args(args: argparse.Namespace, sim: Simulation, duration: float):
+def recorder_from_args(
+    args: argparse.Namespace, sim: Simulation, duration: float
+) -> tuple[Recorder | None, tqdm | None]:
     """``(recorder, progress_bar)`` for the options (``(None, None)`` if no output was asked
     for). Checks every path and setting before anything runs."""
     if not (args.record or args.plot or args.log):
@@ -202,7 +212,7 @@ def recorder_from_args(args: argparse.Namespace, sim: Simulation, duration: floa
 
 
 @contextlib.contextmanager
-def _reporting(recorder, bar):
+def _reporting(recorder: Recorder, bar: tqdm | None) -> Iterator[Recorder]:
     """Close the recorder's files on the way out (also on Ctrl-C) and say what was written."""
     interrupted = False
     try:
@@ -292,7 +302,7 @@ def cmd_pose(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------------- preflight
-def _add_check_parser(sub) -> None:
+def _add_check_parser(sub: SubParsers) -> None:
     p = sub.add_parser(
         "check", help="simulate a motion file headless and judge it before hardware: PASS/FAIL"
     )

@@ -12,8 +12,8 @@ What differs from the handout, and why:
   the joint's −10°..100° range.
 * **Time.** The handout times moves with the wall clock while stepping as fast as it can, so a
   "2 s" move runs however many physics steps the machine manages in 2 wall seconds (a bare
-  stepping loop ran 181,010 and then 223,241 steps, 362 and 447 simulated seconds, in two
-  tries on a 2-core machine) and differs from run to run.
+  stepping loop ran 181,010 to 225,458 steps, 362 to 451 simulated seconds, in four tries on a
+  2-core machine: ``bench/bench_wallclock_handout.py``) and differs from run to run.
   Here a move of T seconds is exactly ``round(T / timestep)`` physics steps (1000 for 2 s at
   0.002 s): deterministic. With a viewer it is paced to the wall clock in real time by
   sleeping to absolute deadlines, so it neither races ahead nor drifts.

@@ -215,7 +215,9 @@ def viewer_observer(viewer: Any) -> ViewerObserver:
 
 
 # ---------------------------------------------------------------------------- stepping
-def _check_divergence(m: mujoco.MjModel, d: mujoco.MjData, before: list[int], qpos: np.ndarray):
+def _check_divergence(
+    m: mujoco.MjModel, d: mujoco.MjData, before: list[int], qpos: np.ndarray
+) -> None:
     for w, n0 in zip(_DIVERGENCE_WARNINGS, before, strict=True):
         info = d.warning[w]
         if info.number > n0:
