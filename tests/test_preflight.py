@@ -7,6 +7,7 @@ import json
 import pytest
 
 from so101sim import cli
+from so101sim.errors import SettingError
 from so101sim.motion import Hold, Move
 from so101sim.motionfile import lab_motion_path
 from so101sim.preflight import Thresholds, check_motion_file, format_report, preflight
@@ -102,7 +103,7 @@ def test_thresholds_are_applied(lab_report):
     tight = check_motion_file(lab_motion_path(), thresholds=Thresholds(limit_margin=3.0))
     assert not tight.passed
     assert all("shoulder_lift comes within" in f for f in tight.failures)
-    with pytest.raises(ValueError, match="limit_margin"):
+    with pytest.raises(SettingError, match="limit_margin"):
         Thresholds(limit_margin=-1)
 
 

@@ -346,16 +346,12 @@ def cmd_check(args: argparse.Namespace) -> int:
 
     from .preflight import Thresholds, check_motion_file, format_report
 
-    try:
-        thresholds = Thresholds(
-            max_effort=args.max_effort,
-            max_saturation=args.max_saturation,
-            max_tracking_error=args.max_tracking_error,
-            limit_margin=args.limit_margin,
-        )
-    except ValueError as exc:
-        print(f"so101sim: error: {exc}", file=sys.stderr)
-        return 2
+    thresholds = Thresholds(  # a bad threshold is a SettingError: main() reports it
+        max_effort=args.max_effort,
+        max_saturation=args.max_saturation,
+        max_tracking_error=args.max_tracking_error,
+        limit_margin=args.limit_margin,
+    )
     report = check_motion_file(
         args.motion, model=args.model, thresholds=thresholds, strict=args.strict
     )

@@ -48,6 +48,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from .errors import SettingError
 from .model import arm_index, load_model
 from .motion import RunResult, Step, run_motion
 from .motionfile import load_motion
@@ -69,7 +70,7 @@ class Thresholds:
         for name in ("max_effort", "max_saturation", "max_tracking_error", "limit_margin"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
+                raise SettingError(f"{name} = {v!r} is invalid; expected a finite number >= 0")
 
 
 @dataclass(frozen=True)
