@@ -39,11 +39,12 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
 
 from .errors import TrajectoryLimitError
-from .units import JOINT_NAMES, ArmUnits, default_units
+from .units import BODY_JOINTS, JOINT_NAMES, ArmUnits, default_units
 
 log = logging.getLogger(__name__)
 
 _N = len(JOINT_NAMES)
+BODY_INDEX = JOINT_NAMES.index(BODY_JOINTS[0])  # a joint whose arm unit is the degree
 
 
 @dataclass(frozen=True)
@@ -71,7 +72,9 @@ class JointLimits:
 
     def in_arm_units(self, units: ArmUnits) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(velocity, acceleration, jerk) in arm units per s, s², s³ (gripper: 0–100 units)."""
-        per_deg = (math.pi / 180.0) / units.scale  # arm units per degree of joint rotation
+        # Arm units per degree of joint rotation: a degree in radians (a body joint's unit)
+        # over each joint's radians per arm unit.
+        per_deg = units.scale[BODY_INDEX] / units.scale
         return (
             np.array(self.velocity) * per_deg,
             np.array(self.acceleration) * per_deg,
