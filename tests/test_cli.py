@@ -116,3 +116,23 @@ def test_teleop_needs_a_port(capsys):
     with pytest.raises(SystemExit):
         cli.main(["teleop"])
     assert "--port" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "message"),
+    [("--fps", "0", "fps = 0.0 is invalid"), ("--duration", "-1", "duration = -1.0 s")],
+)
+def test_teleop_checks_its_numbers_before_opening_anything(
+    monkeypatch, capsys, option, value, message
+):
+    from so101sim import robot
+
+    opened = []
+    monkeypatch.setattr(teleop, "FeetechLeaderBus", lambda *a, **k: opened.append("bus"))
+    monkeypatch.setattr(robot, "SO101SimFollower", lambda *a, **k: opened.append("robot"))
+    rc = cli.main(["teleop", "--port", "/dev/ttyFAKE", "--headless", option, value])
+    captured = capsys.readouterr()
+    assert rc == 2
+    assert message in captured.err
+    assert opened == []  # neither the port nor the simulated follower was opened
+    assert captured.out == ""  # nothing printed before the error (no calibration notice)
