@@ -382,7 +382,7 @@ def load_motion(path: str | Path, *, units: ArmUnits | None = None) -> MotionFil
     """
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_text(encoding="utf-8-sig")  # editors on Windows may write a BOM
     except FileNotFoundError:
         raise MotionFileError(
             str(p), 0, "no such file; expected a TOML motion file (see `so101sim run --help`)"
