@@ -1,6 +1,8 @@
 """Benchmark: offscreen render speed of the quality presets, and recording the lab motion.
 
 Prints, in one run on this machine:
+  0. the visual-mesh triangles each preset draws per frame (meshes counted once per geom that
+     uses them, so the servo mesh counts six times) and the distinct meshes' own totals;
   1. frames/s of ``full`` and ``draft`` at 640×480 (rendering only, the arm sweeping between its
      rest pose and all zeros; draft and full interleaved in rounds so both see the same load);
   2. the wall-clock time to record the lab's 6 s motion to an MP4 (640×480, 30 fps, caption,
@@ -21,10 +23,25 @@ import tempfile
 import time
 from pathlib import Path
 
+import mujoco
+
 import so101sim  # noqa: F401  (chooses the OpenGL backend before mujoco is imported)
 from so101sim import LAB_MOTION, Simulation, gl, run_motion
-from so101sim.recording import FrameRenderer, Recorder, VideoSettings
+from so101sim.recording import FrameRenderer, Recorder, VideoSettings, render_model
 from so101sim.units import STARTING_POSE, ZERO_POSE
+
+
+def visual_triangles(model: mujoco.MjModel) -> tuple[int, int, int]:
+    """(triangles drawn per frame, triangles of the distinct meshes drawn, distinct meshes) of
+    the mesh geoms a default scene draws (groups 0-2; collision geoms are group 3)."""
+    geoms = [
+        g
+        for g in range(model.ngeom)
+        if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH and model.geom_group[g] < 3
+    ]
+    meshes = {int(model.geom_dataid[g]) for g in geoms}
+    drawn = sum(int(model.mesh_facenum[model.geom_dataid[g]]) for g in geoms)
+    return drawn, sum(int(model.mesh_facenum[i]) for i in meshes), len(meshes)
 
 
 def frames_per_second(sim: Simulation, quality: str, frames: int) -> float:
@@ -65,6 +82,13 @@ def main() -> None:
     print(f"OpenGL: MUJOCO_GL={os.environ.get('MUJOCO_GL')}, renderer {gl.renderer_string()!r}")
     print(f"CPU cores: {os.cpu_count()}, load average before: {os.getloadavg()[0]:.2f}")
     sim = Simulation()
+    print("\nvisual meshes (what each preset draws of the shipped model)")
+    for quality in ("full", "draft"):
+        drawn, distinct, n = visual_triangles(render_model(sim.model, quality, 640, 480))
+        print(
+            f"  {quality:5s} {drawn:7d} triangles drawn per frame "
+            f"({n} distinct meshes, {distinct} triangles)"
+        )
     t0 = time.perf_counter()
     FrameRenderer(sim.model, VideoSettings(quality="draft")).close()
     print(

@@ -1,14 +1,15 @@
 """Check a motion file in the simulation, and run it only if it passes.
 
-python examples/check_then_run.py examples/wave.toml
+python examples/check_then_run.py [motion.toml]   # default: wave.toml next to this script
 """
 
 import sys
+from pathlib import Path
 
 from so101sim import Simulation, load_motion, run_motion
 from so101sim.preflight import check_motion_file, format_report
 
-path = sys.argv[1] if len(sys.argv) > 1 else "examples/wave.toml"
+path = sys.argv[1] if len(sys.argv) > 1 else Path(__file__).resolve().parent / "wave.toml"
 
 report = check_motion_file(path)
 print(format_report(report))

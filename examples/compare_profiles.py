@@ -1,23 +1,51 @@
 """Run the lab motion with each profile and compare how hard the actuators work.
 
+The last row, "limited, fastest", gives each lab move the shortest duration the ``limited``
+profile's joint limits allow (rounded up to whole physics steps).
+
 python examples/compare_profiles.py
 """
 
 import dataclasses
 
-from so101sim import LAB_MOTION, Move
+from so101sim import LAB_MOTION, STARTING_POSE, Move, load_model
 from so101sim.preflight import preflight
+from so101sim.trajectory import LimitedProfile, minimum_steps
+from so101sim.units import default_units
 
-for profile in ("linear", "minimum_jerk", "limited"):
-    steps = [
-        dataclasses.replace(s, profile=profile) if isinstance(s, Move) else s for s in LAB_MOTION
-    ]
+TIMESTEP = load_model().opt.timestep  # the physics timestep, s (0.002)
+
+
+def with_profile(profile, fastest=False):
+    """The lab motion with every move using ``profile``; with ``fastest``, each move as short
+    as the joint limits allow."""
+    units, limited = default_units(), LimitedProfile()
+    current = units.pose_to_array(STARTING_POSE)
+    steps = []
+    for s in LAB_MOTION:
+        if isinstance(s, Move):
+            target = units.pose_to_array(s.target, base=current)
+            duration = s.duration
+            if fastest:
+                t_min = limited.minimum_duration(current, target)
+                duration = minimum_steps(t_min, TIMESTEP) * TIMESTEP
+            s = dataclasses.replace(s, profile=profile, duration=duration)
+            current = target
+        steps.append(s)
+    return steps
+
+
+runs = [(p, with_profile(p)) for p in ("linear", "minimum_jerk", "limited")]
+runs.append(("limited, fastest", with_profile("limited", fastest=True)))
+for label, steps in runs:
     report = preflight(steps)
     joints = [(name, j) for s in report.steps for name, j in s.joints.items()]
     effort, e_joint = max((j.peak_effort, name) for name, j in joints)
     saturated = max(j.saturated for _, j in joints)
     error, t_joint = max((j.peak_tracking_error, name) for name, j in joints)
+    moves = ", ".join(f"{s.duration:.3f} s" for s in steps if isinstance(s, Move))
     print(
-        f"{profile:>12}: peak effort {effort:.1%} ({e_joint}), saturated {saturated * 1000:.0f} ms,"
-        f" peak tracking error {error:.3f}° ({t_joint}), {'PASS' if report.passed else 'FAIL'}"
+        f"{label:>16}: moves {moves}: peak effort {effort:.1%} ({e_joint}), "
+        f"saturated {saturated * 1000:.0f} ms, peak tracking error {error:.3f}° ({t_joint}), "
+        f"{'PASS' if report.passed else 'FAIL'}"
     )

@@ -1,11 +1,11 @@
 """Generate the simplified visual meshes of the ``draft`` recording preset.
 
-The shipped SO-101 STL meshes hold ~96k triangles (~322k drawn per frame, the servo mesh being
-used six times), which a CPU rasteriser (Mesa llvmpipe) draws at 3–4 frames/s. This script
-simplifies each one with quadric edge collapse (``fast-simplification``, the library PyVista
-uses) to about ``--faces`` triangles and writes them, with a manifest, to
-``src/so101sim/data/draft_meshes/``. They are committed, so nothing is generated at run time;
-rerun this script only when the model's meshes change::
+The shipped SO-101 STL meshes hold ~322k triangles (~399k drawn per frame, the servo mesh being
+used five times; ``bench/bench_recording.py`` prints both figures), which a CPU rasteriser
+(Mesa llvmpipe) draws at 2–3 frames/s. This script simplifies each one with quadric edge
+collapse (``fast-simplification``, the library PyVista uses) to about ``--faces`` triangles
+and writes them, with a manifest, to ``src/so101sim/data/draft_meshes/``. They are committed,
+so nothing is generated at run time; rerun this script only when the model's meshes change::
 
     pip install fast-simplification
     python scripts/make_draft_meshes.py            # default: 5000 faces per mesh

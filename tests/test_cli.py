@@ -131,3 +131,79 @@ def test_bad_settings_fail_before_anything_runs_or_is_written(capsys, tmp_path):
 def test_recording_headless_still_says_it_is_headless(capsys, tmp_path):
     assert main(["hold", "--duration", "0.1", "--log", str(tmp_path / "h.csv")]) == 0
     assert "running headless" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "message"),
+    [("--fps", "0", "fps = 0.0 is invalid"), ("--duration", "-1", "duration = -1.0 s")],
+)
+def test_teleop_checks_its_numbers_before_opening_anything(
+    monkeypatch, capsys, option, value, message
+):
+    from so101sim import robot
+
+    opened = []
+    monkeypatch.setattr(teleop, "FeetechLeaderBus", lambda *a, **k: opened.append("bus"))
+    monkeypatch.setattr(robot, "SO101SimFollower", lambda *a, **k: opened.append("robot"))
+    rc = cli.main(["teleop", "--port", "/dev/ttyFAKE", "--headless", option, value])
+    captured = capsys.readouterr()
+    assert rc == 2
+    assert message in captured.err
+    assert opened == []  # neither the port nor the simulated follower was opened
+    assert captured.out == ""  # nothing printed before the error (no calibration notice)
+
+
+def test_recording_shows_a_progress_bar_on_a_terminal(monkeypatch, tmp_path, capsys):
+    import io
+    import sys
+
+    import tqdm
+
+    class Terminal(io.StringIO):
+        def isatty(self):  # tqdm(disable=None) shows a bar only on a terminal
+            return True
+
+    bars = []
+
+    class SpyBar(tqdm.tqdm):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            self.enabled = not self.disable  # before close() disables it
+            self.stream = kwargs.get("file")
+            self.was_closed = False
+            bars.append(self)
+
+        def close(self):
+            self.was_closed = True
+            super().close()
+
+    monkeypatch.setattr(tqdm, "tqdm", SpyBar)
+    terminal = Terminal()
+    monkeypatch.setattr(sys, "stderr", terminal)
+    video = tmp_path / "hold.mp4"
+    argv = ["hold", "--duration", "0.2", "--record", str(video), "--width", "32"]
+    assert main([*argv, "--height", "24", "--quality", "draft"]) == 0
+    out = capsys.readouterr().out
+    [bar] = bars
+    assert bar.enabled and bar.stream is terminal  # on the terminal's stderr
+    assert bar.total == 7  # frames at t = 0, 1/30, ..., 0.2 s
+    assert bar.n == bar.total  # one update per frame written
+    assert f"({bar.total} frames)" in out
+    assert bar.was_closed
+
+
+def test_recording_shows_no_progress_bar_off_a_terminal(monkeypatch, tmp_path):
+    import tqdm
+
+    bars = []
+
+    class SpyBar(tqdm.tqdm):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            bars.append(self)
+
+    monkeypatch.setattr(tqdm, "tqdm", SpyBar)
+    argv = ["hold", "--duration", "0.2", "--record", str(tmp_path / "h.mp4"), "--width", "32"]
+    assert main([*argv, "--height", "24", "--quality", "draft"]) == 0
+    [bar] = bars
+    assert bar.disable and bar.n == 0  # captured stderr is not a terminal: nothing drawn

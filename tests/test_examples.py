@@ -1,19 +1,28 @@
 """The examples run as a student runs them (headless here) and do what they say."""
 
+import csv
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
+from so101sim.units import JOINT_NAMES, STARTING_POSE, ZERO_POSE
+
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 
-def run(name: str) -> str:
+def run(name: str, *args: str, cwd: Path | None = None) -> str:
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     out = subprocess.run(
-        [sys.executable, str(EXAMPLES / name)], env=env, capture_output=True, text=True, timeout=300
+        [sys.executable, str(EXAMPLES / name), *args],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=cwd,
     )
     assert out.returncode == 0, out.stderr
     return out.stdout
@@ -33,3 +42,60 @@ def test_lab_hold_start_example():
 def test_clean_api_example():
     out = run("clean_api.py")
     assert "to_zero  1000 steps" in out and "ends t=6.000 s" in out
+
+
+# ---------------------------------------------------------------------------- more examples
+def _pose_line(out: str, label: str) -> dict[str, float]:
+    """``label: shoulder_pan=0.00° ... gripper=0.00`` (format_pose) -> {joint: value}."""
+    [line] = [x for x in out.splitlines() if x.startswith(label)]
+    return {k: float(v) for k, v in re.findall(r"(\w+)=(-?[\d.]+)", line)}
+
+
+def test_hardware_style_example_in_lockstep_goes_to_zeros_and_back():
+    out = run("hardware_style.py", "--mode", "lockstep")
+    start, zeros, back = (_pose_line(out, x) for x in ("start", "zeros", "back"))
+    assert set(zeros) == set(JOINT_NAMES)
+    assert start == pytest.approx(STARTING_POSE, abs=0.05)
+    assert zeros == pytest.approx(ZERO_POSE, abs=0.5)
+    assert back == pytest.approx(STARTING_POSE, abs=0.5)
+
+
+def test_record_lab_example_writes_video_plot_and_log_where_it_runs(tmp_path):
+    import imageio.v2 as imageio
+    import imageio_ffmpeg
+
+    out = run("record_lab.py", cwd=tmp_path)
+    assert "largest tracking error on the way back: ('" in out
+    for kind, name in (("video", "lab.mp4"), ("plot", "lab.png"), ("log", "lab.csv")):
+        assert f"{kind}: {name}" in out
+        assert (tmp_path / name).stat().st_size > 0
+    frames, _ = imageio_ffmpeg.count_frames_and_secs(str(tmp_path / "lab.mp4"))
+    assert frames == 181  # 6 s at 30 frames/s, t = 0 included
+    with open(tmp_path / "lab.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 3000  # one row per 2 ms step
+    assert [r["phase"] for r in (rows[0], rows[1500], rows[-1])] == ["to_zero", "hold", "return"]
+    assert float(rows[-1]["time"]) == pytest.approx(6.0)
+    assert imageio.imread(tmp_path / "lab.png").ndim == 3
+
+
+def test_check_then_run_example_runs_from_any_folder(tmp_path):
+    out = run("check_then_run.py", cwd=tmp_path)  # its default wave.toml is found all the same
+    assert "PASS" in out
+    ends = re.findall(r"^\s*(.+?): ended at ([\d.]+) s", out, flags=re.M)
+    assert ends[0][0] == "raise" and ends[-1] == ("fold", "8.500")
+
+
+def test_compare_profiles_example_ranks_the_profiles():
+    out = run("compare_profiles.py")
+    rows = {}
+    for line in out.splitlines():
+        label, rest = line.split(": moves ")
+        effort = float(re.search(r"peak effort ([\d.]+)%", rest).group(1))
+        moves = [float(x) for x in re.findall(r"([\d.]+) s,", rest.split(": peak")[0] + ",")]
+        rows[label.strip()] = (moves, effort, rest.rstrip().endswith("PASS"))
+    assert list(rows) == ["linear", "minimum_jerk", "limited", "limited, fastest"]
+    assert rows["linear"][1] > rows["limited"][1]  # the lab's linear moves work harder
+    fast_moves, fast_effort, fast_passes = rows["limited, fastest"]
+    assert all(0.5 < t < 2.0 for t in fast_moves)  # shorter than the lab's 2 s moves
+    assert fast_effort > rows["limited"][1] and fast_passes

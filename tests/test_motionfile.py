@@ -169,6 +169,20 @@ def test_loading_a_file(tmp_path):
     assert str(exc.value).startswith(f"{path}:2: ")
 
 
+def test_a_file_saved_with_a_utf8_bom_loads(tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_text(GOOD, encoding="utf-8-sig")  # starts with EF BB BF, as Notepad saves
+    assert path.read_bytes().startswith(b"\xef\xbb\xbf")
+    mf = load_motion(path)
+    plain = tmp_path / "plain.toml"
+    plain.write_text(GOOD)
+    assert mf.steps == load_motion(plain).steps and mf.start == load_motion(plain).start
+    path.write_text("[[steps]]\nhold = -1\n", encoding="utf-8-sig")
+    with pytest.raises(MotionFileError) as exc:
+        load_motion(path)
+    assert str(exc.value).startswith(f"{path}:2: ")  # line numbers unchanged by the BOM
+
+
 def test_a_missing_file_is_a_motion_file_error(tmp_path):
     with pytest.raises(MotionFileError, match="no such file") as exc:
         load_motion(tmp_path / "nope.toml")

@@ -158,3 +158,12 @@ def test_cli_pose_prints_each_pose_as_a_dict_and_as_toml(monkeypatch, capsys):
     assert dicts[0] == pytest.approx(STARTING_POSE, abs=0.05)
     assert dicts[1] == pytest.approx(SLIDER_POSE, abs=0.05)
     assert tomls[1]["pose_2"] == dicts[1]
+
+
+def test_cli_pose_without_a_display_gives_only_the_error(monkeypatch, capsys):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert cli.main(["pose"]) == 2
+    captured = capsys.readouterr()
+    assert "no display" in captured.err
+    assert captured.out == ""  # no instructions for a window that never opened

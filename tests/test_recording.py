@@ -6,8 +6,10 @@ file runs in seconds on a 2-core CPU with Mesa's software renderer.
 
 from __future__ import annotations
 
+import copy
 import csv
 import json
+import logging
 import math
 
 import imageio.v2 as imageio
@@ -35,6 +37,7 @@ from so101sim.errors import (
     RenderBackendError,
     So101SimError,
 )
+from so101sim.model import load_model, model_source
 from so101sim.simulation import Observer
 from so101sim.units import JOINT_NAMES
 
@@ -427,3 +430,46 @@ def test_cli_bad_output_fails_before_running(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "unknown camera 'top'" in err and "free" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.mp4"]
+
+
+def _draws_draft_meshes(m: mujoco.MjModel) -> bool:
+    names = {mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_MESH, i) for i in range(m.nmesh)}
+    return bool(names) and all(n.endswith("__draft") for n in names)
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        pytest.param(lambda: mujoco.MjModel.from_xml_path(str(scene_path())), id="from_xml_path"),
+        pytest.param(lambda: copy.copy(load_model()), id="copy"),
+    ],
+)
+def test_draft_recognises_the_shipped_model_however_it_was_compiled(make, caplog):
+    model = make()
+    assert model_source(model) is None  # not the object load_model() returned
+    with caplog.at_level(logging.WARNING, logger="so101sim.recording"):
+        rm = rec.render_model(model, "draft", 64, 48)
+    assert _draws_draft_meshes(rm)
+    assert (rm.nq, rm.nbody) == (model.nq, model.nbody)
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+
+
+def test_draft_warns_when_it_falls_back_to_the_models_own_meshes(caplog):
+    edited = copy.copy(load_model())
+    edited.geom_rgba[:, :3] = (0.9, 0.1, 0.1)  # edited after loading: drawn in red now
+    with caplog.at_level(logging.WARNING, logger="so101sim.recording"):
+        rm = rec.render_model(edited, "draft", 64, 48)
+    assert not _draws_draft_meshes(rm)
+    np.testing.assert_array_equal(rm.mesh_facenum, edited.mesh_facenum)
+    [warning] = [r for r in caplog.records if r.levelno == logging.WARNING]
+    assert "falling back to the model's own meshes" in warning.getMessage()
+    assert "load_model" in warning.getMessage()
+
+    box = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><geom type='box' size='.1 .1 .1'/></worldbody></mujoco>"
+    )
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="so101sim.recording"):
+        rec.render_model(box, "draft", 64, 48)
+    [warning] = [r for r in caplog.records if r.levelno == logging.WARNING]
+    assert "none of its meshes is a shipped SO-101 mesh" in warning.getMessage()

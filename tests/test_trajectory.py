@@ -159,3 +159,25 @@ def test_limited_runs_smoother_than_linear_in_the_simulation():
         seg = sim.move_to(ZERO_POSE, 2.0, profile=name)
         errors[name] = seg.worst_tracking_error[1]
     assert errors["limited"] < errors["linear"]
+
+
+def test_strict_refusal_quotes_a_duration_that_passes():
+    # The lab's rest -> zero move: the limits need a fraction of a step more than 412 steps.
+    prof = LimitedProfile()
+    zero = default_units().pose_to_array(ZERO_POSE)
+    t_min = prof.minimum_duration(START, zero)
+    needed = math.ceil(t_min / DT) * DT
+    assert needed > t_min  # t_min is not a whole number of steps, so rounding matters
+    too_short = Move(ZERO_POSE, needed - DT, profile="limited")
+    with pytest.raises(TrajectoryLimitError, match=f"need at least {needed:.3f} s"):
+        check_limited_moves(START, [too_short], DT, strict=True)
+    [short] = check_limited_moves(START, [too_short], DT)
+    assert short.needed == pytest.approx(needed)
+    # A request of exactly the quoted figure passes both the check and the strict profile.
+    quoted = float(f"{needed:.3f}")
+    assert check_limited_moves(START, [Move(ZERO_POSE, quoted, profile="limited")], DT) == []
+    n = round(quoted / DT)
+    out = LimitedProfile(strict=True)(START, zero, n, DT)
+    assert len(out) == n
+    with pytest.raises(TrajectoryLimitError, match=f"at least {needed:.3f} s"):
+        LimitedProfile(strict=True)(START, zero, n - 1, DT)

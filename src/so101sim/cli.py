@@ -284,13 +284,14 @@ def cmd_pose(args: argparse.Namespace) -> int:
     from .posefinder import format_python, format_toml, pose_scene, watch_poses
 
     m, d = pose_scene(args.model)
-    print(
-        "Move the joint sliders (right panel, 'Joint'), or double-click a part and "
-        "Ctrl+right-drag it. Each pose the arm is left in is printed below; close the window "
-        "to finish.",
-        flush=True,
-    )
+    # Open the viewer first: without a display its error is all the user sees.
     with open_viewer(m, d, show_ui=True) as handle:
+        print(
+            "Move the joint sliders (right panel, 'Joint'), or double-click a part and "
+            "Ctrl+right-drag it. Each pose the arm is left in is printed below; close the "
+            "window to finish.",
+            flush=True,
+        )
         for change in watch_poses(handle, m, d):
             print(
                 f"\n# pose {change.number} (t = {change.time:.1f} s)\n"
@@ -380,8 +381,13 @@ def _add_teleop_parser(sub: argparse._SubParsersAction) -> None:
 
 def cmd_teleop(args: argparse.Namespace) -> int:
     from . import teleop
+    from .hardware import check_fps
+    from .motion import check_duration
     from .robot import SO101SimFollower, SO101SimFollowerConfig
 
+    # Check the numbers before opening anything (port, robot, viewer).
+    fps = check_fps(args.fps)
+    duration = check_duration(args.duration) if args.duration is not None else None
     if args.calibration:
         calibration = teleop.load_calibration(args.calibration)
         print(f"calibration: {args.calibration}")
@@ -410,8 +416,8 @@ def cmd_teleop(args: argparse.Namespace) -> int:
                 robot,
                 bus,
                 calibration,
-                fps=args.fps,
-                duration=args.duration,
+                fps=fps,
+                duration=duration,
                 should_stop=(lambda: not robot.viewer_open) if use_viewer else None,
             )
     except KeyboardInterrupt:

@@ -126,6 +126,12 @@ def arm_units(model: mujoco.MjModel) -> ArmUnits:
     return ArmUnits(lower=idx.lower, upper=idx.upper)
 
 
+def loaded_models() -> list[tuple[Path, mujoco.MjModel]]:
+    """``(file, model)`` for every model :func:`load_model` has compiled in this process."""
+    with _lock:
+        return [(Path(path), model) for (path, _mtime), model in _cache.items()]
+
+
 def model_source(model: mujoco.MjModel) -> Path | None:
     """The MJCF file ``model`` was compiled from by :func:`load_model`, or None if it was built
     another way (or is a copy)."""

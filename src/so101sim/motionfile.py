@@ -47,7 +47,6 @@ line of the nearest enclosing key or table that was found.
 
 from __future__ import annotations
 
-import math
 import re
 import tomllib
 from collections.abc import Mapping
@@ -161,7 +160,7 @@ class _Loader:
         self.path = path
         self.units = units
         self.loc = _Locator(text)
-        self.to_deg = 1.0
+        self.radians = False  # body joints given in radians (units = "rad")
         lo, hi = units.limits
         self.lo, self.hi = lo, hi
 
@@ -196,8 +195,8 @@ class _Loader:
         except JointValueError as exc:
             raise self.fail(where, str(exc)) from None
         i = JOINT_NAMES.index(name)
-        if i != GRIPPER_INDEX:
-            v *= self.to_deg
+        if self.radians and i != GRIPPER_INDEX:
+            v *= 1.0 / self.units.scale[i]  # radians -> degrees: units' radians per degree
         if not (self.lo[i] - 1e-9 <= v <= self.hi[i] + 1e-9):
             unit = "" if name == GRIPPER else "°"
             raise self.fail(
@@ -244,7 +243,7 @@ class _Loader:
                 f"unknown units {units!r}; expected 'deg' (default) or 'rad' for the body "
                 "joints (the gripper is always 0-100)",
             )
-        self.to_deg = 180.0 / math.pi if units == "rad" else 1.0
+        self.radians = units == "rad"
         default_profile = self.profile(data.get("profile", "linear"), ("profile",))
 
         poses: dict[str, dict[str, float]] = {}
@@ -383,7 +382,7 @@ def load_motion(path: str | Path, *, units: ArmUnits | None = None) -> MotionFil
     """
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_text(encoding="utf-8-sig")  # editors on Windows may write a BOM
     except FileNotFoundError:
         raise MotionFileError(
             str(p), 0, "no such file; expected a TOML motion file (see `so101sim run --help`)"

@@ -198,7 +198,7 @@ def preflight(
     units = sim.units
     notes = [
         f"step {s.index + 1} ({s.phase}): stretched from {s.requested:.3f} s to "
-        f"{math.ceil(s.minimum / sim.timestep - 1e-9) * sim.timestep:.3f} s by the joint limits"
+        f"{s.needed:.3f} s by the joint limits"
         for s in check_limited_moves(
             sim.commanded_array(), steps, sim.timestep, units=units, strict=strict
         )

@@ -32,6 +32,7 @@ import logging
 import math
 import os
 import threading
+import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,7 +44,7 @@ import numpy as np
 
 from . import gl
 from .errors import CameraError, OutputPathError, RecordingError, RenderBackendError
-from .model import arm_units, model_source
+from .model import arm_units, load_model, loaded_models, model_dir, model_source
 from .simulation import Observer, Trace
 from .units import GRIPPER_INDEX, JOINT_NAMES
 from .viewer import frame_arm
@@ -238,20 +239,101 @@ def _compile_draft(source: Path) -> mujoco.MjModel | None:
     return spec.compile()
 
 
+SHIPPED_MODEL_FILES = ("scene.xml", "so101_new_calib.xml", "so101_old_calib.xml")
+"""The shipped MJCF files, in :func:`so101sim.model.model_dir`."""
+
+# What drawing a model's state depends on: its tree, geoms, materials, meshes, cameras, lights.
+_DRAWN_FIELDS = (
+    "body_parentid", "body_pos", "body_quat", "body_ipos", "body_iquat",
+    "jnt_type", "jnt_bodyid", "jnt_pos", "jnt_axis",
+    "geom_type", "geom_bodyid", "geom_pos", "geom_quat", "geom_size", "geom_rgba",
+    "geom_group", "geom_matid", "geom_dataid", "geom_contype", "geom_conaffinity",
+    "mat_rgba", "mat_texid", "mesh_vertnum", "mesh_facenum", "mesh_vert", "mesh_face",
+    "mesh_pos", "mesh_quat", "cam_pos", "cam_quat", "cam_fovy", "light_pos", "light_dir",
+    "light_diffuse",
+)  # fmt: skip
+_fingerprints: weakref.WeakKeyDictionary[mujoco.MjModel, str] = weakref.WeakKeyDictionary()
+
+
+def _drawing_fingerprint(model: mujoco.MjModel, *, cache: bool = False) -> str:
+    """A content hash of everything that drawing ``model`` depends on (compiled mesh data
+    included): two models with the same fingerprint draw the same pictures."""
+    if cache and model in _fingerprints:
+        return _fingerprints[model]
+    h = hashlib.sha256(bytes(model.names))
+    h.update(np.array([model.nq, model.nbody, model.ngeom, model.nmesh, model.nmat]).tobytes())
+    for name in _DRAWN_FIELDS:
+        h.update(np.ascontiguousarray(getattr(model, name)).tobytes())
+    out = h.hexdigest()
+    if cache:
+        _fingerprints[model] = out
+    return out
+
+
+def _shipped_meshes(model: mujoco.MjModel) -> list[str]:
+    """The model's meshes that are shipped SO-101 meshes with a draft version: same name
+    and same number of faces as the original in the draft manifest."""
+    manifest = _draft_manifest()
+    out = []
+    for i in range(model.nmesh):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_MESH, i) or ""
+        entry = manifest.get(f"{name}.stl")
+        if entry is not None and int(model.mesh_facenum[i]) == entry["original_faces"]:
+            out.append(name)
+    return out
+
+
+def draft_source(model: mujoco.MjModel) -> tuple[Path | None, str]:
+    """The MJCF file whose draft version draws ``model``, and why not if there is none.
+
+    A model compiled by :func:`so101sim.model.load_model` is its file. Any other model (one
+    compiled by ``mujoco.MjModel.from_xml_path`` directly, or a ``copy.copy`` of a loaded
+    model) is matched by content, compiled mesh data included, against the models
+    ``load_model`` has compiled and the shipped files (:data:`SHIPPED_MODEL_FILES`).
+    """
+    source = model_source(model)
+    if source is not None:
+        return source, ""
+    if not _shipped_meshes(model):
+        return None, (
+            "none of its meshes is a shipped SO-101 mesh with a draft version (compared by "
+            f"mesh name and face count with {draft_mesh_dir() / 'manifest.json'})"
+        )
+    fingerprint = _drawing_fingerprint(model)
+    seen: set[Path] = set()
+    for path, loaded in loaded_models():
+        seen.add(path)
+        if _drawing_fingerprint(loaded, cache=True) == fingerprint:
+            return path, ""
+    for name in SHIPPED_MODEL_FILES:
+        path = (model_dir() / name).resolve()
+        if path in seen or not path.is_file():
+            continue
+        if _drawing_fingerprint(load_model(path), cache=True) == fingerprint:
+            return path, ""
+    return None, (
+        "it uses the shipped SO-101 meshes but was not compiled by so101sim.load_model(), and "
+        "its bodies, geoms, materials or meshes differ from every model load_model() has "
+        f"compiled and from the shipped {', '.join(SHIPPED_MODEL_FILES)} (changed after "
+        "loading?); load the file with so101sim.load_model(path) to get the draft meshes"
+    )
+
+
 def render_model(model: mujoco.MjModel, quality: str, width: int, height: int) -> mujoco.MjModel:
     """A private model to draw ``model``'s state with, at ``quality``, its offscreen buffer at
     least ``width`` × ``height``. Same bodies and joints as ``model``; the physics model itself
     is never changed.
 
-    ``draft``: the simplified visual meshes (when ``model`` was loaded from a file whose meshes
-    they were made from), no multisampling, no reflections (shadows are turned off by the
-    renderer). ``full``: a copy of ``model`` as it is.
+    ``draft``: the simplified visual meshes (when ``model`` is, or draws the same as, a model
+    compiled from a file whose meshes they were made from: see :func:`draft_source`), no
+    multisampling, no reflections (shadows are turned off by the renderer); otherwise the
+    model's own meshes, with a logged warning. ``full``: a copy of ``model`` as it is.
     """
     if quality not in QUALITIES:
         raise RecordingError(f"unknown quality {quality!r}; valid presets are {QUALITIES}")
     base = model
     if quality == "draft":
-        source = model_source(model)
+        source, why = draft_source(model)
         if source is not None:
             key = (str(source), source.stat().st_mtime_ns)
             with _render_lock:
@@ -265,7 +347,13 @@ def render_model(model: mujoco.MjModel, quality: str, width: int, height: int) -
             if draft is not None and (draft.nq, draft.nbody) == (model.nq, model.nbody):
                 base = draft
             else:
-                log.debug("draft preset: no simplified meshes match %s", source)
+                why = f"no shipped simplified mesh matches the meshes of {source}"
+        if base is model:
+            log.warning(
+                "draft preset: falling back to the model's own meshes (slower to draw on a "
+                "CPU renderer; shadows and reflections are still off) because %s",
+                why,
+            )
     rm = copy.copy(base)
     rm.vis.global_.offwidth = max(int(rm.vis.global_.offwidth), width)
     rm.vis.global_.offheight = max(int(rm.vis.global_.offheight), height)

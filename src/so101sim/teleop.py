@@ -23,7 +23,6 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
-import math
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -70,8 +69,9 @@ def default_calibration() -> dict[str, MotorCalibration]:
     range (−10°..100° from the middle) around 2047. Pass the real file for exact values.
     """
     units = default_units()
-    g_lo = round(2047 + math.degrees(units.lower[GRIPPER_INDEX]) * MAX_TICK / 360)
-    g_hi = round(2047 + math.degrees(units.upper[GRIPPER_INDEX]) * MAX_TICK / 360)
+    deg_per_rad = 1.0 / units.scale[0]  # a body joint's arm unit is the degree
+    g_lo = round(2047 + units.lower[GRIPPER_INDEX] * deg_per_rad * MAX_TICK / 360)
+    g_hi = round(2047 + units.upper[GRIPPER_INDEX] * deg_per_rad * MAX_TICK / 360)
     out = {n: MotorCalibration(MOTOR_IDS[n], 0, 0, 0, MAX_TICK) for n in JOINT_NAMES}
     out[GRIPPER] = MotorCalibration(MOTOR_IDS[GRIPPER], 0, 0, g_lo, g_hi)
     return out

@@ -39,11 +39,12 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
 
 from .errors import TrajectoryLimitError
-from .units import JOINT_NAMES, ArmUnits, default_units
+from .units import BODY_JOINTS, JOINT_NAMES, ArmUnits, default_units
 
 log = logging.getLogger(__name__)
 
 _N = len(JOINT_NAMES)
+BODY_INDEX = JOINT_NAMES.index(BODY_JOINTS[0])  # a joint whose arm unit is the degree
 
 
 @dataclass(frozen=True)
@@ -71,7 +72,9 @@ class JointLimits:
 
     def in_arm_units(self, units: ArmUnits) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(velocity, acceleration, jerk) in arm units per s, s², s³ (gripper: 0–100 units)."""
-        per_deg = (math.pi / 180.0) / units.scale  # arm units per degree of joint rotation
+        # Arm units per degree of joint rotation: a degree in radians (a body joint's unit)
+        # over each joint's radians per arm unit.
+        per_deg = units.scale[BODY_INDEX] / units.scale
         return (
             np.array(self.velocity) * per_deg,
             np.array(self.acceleration) * per_deg,
@@ -145,7 +148,7 @@ class LimitedProfile:
             return np.repeat(target[None], n, axis=0)
         inp = self._input(start, target)
         t_min = float(self._plan(inp).duration)
-        needed = max(1, math.ceil(t_min / dt - 1e-9))
+        needed = minimum_steps(t_min, dt)
         if n < needed:
             message = (
                 f"a move of {n * dt:.3f} s is shorter than the {t_min:.3f} s the joint limits "
@@ -167,6 +170,13 @@ class LimitedProfile:
         return out
 
 
+def minimum_steps(t_min: float, dt: float) -> int:
+    """The fewest whole physics steps of ``dt`` s that a move needing ``t_min`` s can take:
+    ``ceil(t_min / dt)`` (at least 1). A ``limited`` move of ``n`` steps is short, stretched
+    or refused, exactly when ``n`` is below this."""
+    return max(1, math.ceil(t_min / dt - 1e-9))
+
+
 def _fmt(values: Iterable[float]) -> str:
     values = tuple(values)
     return f"{values[0]:g}" if len(set(values)) == 1 else "/".join(f"{v:g}" for v in values)
@@ -179,7 +189,8 @@ class ShortMove:
     index: int  # position of the step in the motion (0-based)
     phase: str
     requested: float  # s, whole physics steps
-    minimum: float  # s
+    minimum: float  # s, the limits' exact minimum (ruckig)
+    needed: float  # s, the shortest duration that passes: minimum rounded up to whole steps
 
 
 def check_limited_moves(
@@ -209,17 +220,20 @@ def check_limited_moves(
         name = getattr(step, "profile", "linear")
         if name == "limited" or isinstance(name, LimitedProfile):
             p = name if isinstance(name, LimitedProfile) else prof
-            requested = max(1, round(float(step.duration) / timestep)) * timestep
+            n = max(1, round(float(step.duration) / timestep))
             t_min = p.minimum_duration(current, goal)
-            if requested < t_min - 1e-9:
-                short.append(ShortMove(i, str(getattr(step, "phase", "move")), requested, t_min))
+            needed = minimum_steps(t_min, timestep)
+            if n < needed:  # the same test as the profile's own, so both agree
+                phase = str(getattr(step, "phase", "move"))
+                short.append(ShortMove(i, phase, n * timestep, t_min, needed * timestep))
         current = goal
     if strict and short:
         s = short[0]
         raise TrajectoryLimitError(
             f"step {s.index + 1} ({s.phase}) asks for {s.requested:.3f} s but the joint limits "
-            f"need at least {s.minimum:.3f} s; lengthen it, or run without --strict to stretch "
-            f"it ({len(short)} move(s) too short in all)"
+            f"need at least {s.needed:.3f} s ({s.minimum:.4f} s rounded up to whole "
+            f"{timestep * 1000:g} ms steps); lengthen it to {s.needed:.3f} s or more, or run "
+            f"without --strict to stretch it ({len(short)} move(s) too short in all)"
         )
     return short
 
@@ -230,4 +244,5 @@ __all__ = [
     "LimitedProfile",
     "ShortMove",
     "check_limited_moves",
+    "minimum_steps",
 ]
