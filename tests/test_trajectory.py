@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from so101sim.errors import So101SimError, TrajectoryLimitError
+from so101sim.errors import SettingError, So101SimError, TrajectoryLimitError
 from so101sim.motion import PROFILES, Hold, Move, get_profile, run_motion
 from so101sim.simulation import Simulation
 from so101sim.trajectory import (
@@ -118,9 +118,9 @@ def test_limited_with_no_motion_holds_the_target():
 
 
 def test_joint_limits_are_validated():
-    with pytest.raises(ValueError, match="velocity"):
+    with pytest.raises(SettingError, match="velocity"):
         JointLimits.uniform(0.0, 1.0, 1.0)
-    with pytest.raises(ValueError, match="6 finite"):
+    with pytest.raises(SettingError, match="6 finite"):
         JointLimits((1.0,), (1.0,) * 6, (1.0,) * 6)
 
 

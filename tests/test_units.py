@@ -151,3 +151,10 @@ def test_a_hair_past_a_limit_is_clipped_not_rejected():
     assert arr[1] == pytest.approx(100.0, abs=1e-4)
     with pytest.raises(JointLimitError):
         U.pose_to_array({**ZERO_POSE, "shoulder_lift": 100.6})
+
+
+def test_arm_units_per_degree_of_rotation():
+    per = U.per_degree()
+    assert per[:5] == pytest.approx(np.ones(5))
+    # the gripper's 100 units span its 110° range
+    assert per[5] == pytest.approx(100 / 110, rel=1e-6)

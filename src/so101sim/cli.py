@@ -272,7 +272,7 @@ def _add_motion_args(p: argparse.ArgumentParser) -> None:
 
 
 # ---------------------------------------------------------------------------- pose finder
-def _add_pose_parser(sub) -> None:
+def _add_pose_parser(sub: SubParsers) -> None:
     p = sub.add_parser(
         "pose", help="pose the arm in the viewer; prints each pose as a Python dict and as TOML"
     )

@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import re
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -60,6 +60,7 @@ import numpy as np
 from .errors import DurationError, JointNameError, JointValueError, MotionFileError
 from .motion import PROFILES, Hold, Move, Step, check_duration
 from .units import (
+    DEG_PER_RAD,
     GRIPPER,
     GRIPPER_INDEX,
     JOINT_NAMES,
@@ -167,7 +168,9 @@ class _Loader:
     def fail(self, where: tuple[Any, ...], reason: str) -> MotionFileError:
         return MotionFileError(self.path, self.loc.line(where), reason)
 
-    def check_keys(self, table: Mapping[str, Any], allowed: tuple[str, ...], where, what: str):
+    def check_keys(
+        self, table: Mapping[str, Any], allowed: tuple[str, ...], where: tuple[Any, ...], what: str
+    ) -> None:
         for key in table:
             if key not in allowed:
                 raise self.fail(
@@ -196,7 +199,7 @@ class _Loader:
             raise self.fail(where, str(exc)) from None
         i = JOINT_NAMES.index(name)
         if self.radians and i != GRIPPER_INDEX:
-            v *= 1.0 / self.units.scale[i]  # radians -> degrees: units' radians per degree
+            v *= DEG_PER_RAD  # a body joint given in radians, to the arm's degrees
         if not (self.lo[i] - 1e-9 <= v <= self.hi[i] + 1e-9):
             unit = "" if name == GRIPPER else "°"
             raise self.fail(
@@ -341,7 +344,9 @@ class _Loader:
             description=description,
         )
 
-    def unknown_pose(self, name: Any, where: tuple[Any, ...], known) -> MotionFileError:
+    def unknown_pose(
+        self, name: Any, where: tuple[Any, ...], known: Iterable[str]
+    ) -> MotionFileError:
         return self.fail(
             where,
             f"unknown pose {name!r}; defined poses are {', '.join(sorted(known))} "

@@ -34,7 +34,14 @@ import numpy as np
 from .errors import CalibrationError, LeaderError
 from .hardware import Clock, check_fps, clock_for, sleep_until
 from .motion import check_duration
-from .units import GRIPPER, GRIPPER_INDEX, JOINT_NAMES, LEROBOT_SUFFIX, default_units
+from .units import (
+    DEG_PER_RAD,
+    GRIPPER,
+    GRIPPER_INDEX,
+    JOINT_NAMES,
+    LEROBOT_SUFFIX,
+    default_units,
+)
 
 log = logging.getLogger(__name__)
 
@@ -69,9 +76,8 @@ def default_calibration() -> dict[str, MotorCalibration]:
     range (−10°..100° from the middle) around 2047. Pass the real file for exact values.
     """
     units = default_units()
-    deg_per_rad = 1.0 / units.scale[0]  # a body joint's arm unit is the degree
-    g_lo = round(2047 + units.lower[GRIPPER_INDEX] * deg_per_rad * MAX_TICK / 360)
-    g_hi = round(2047 + units.upper[GRIPPER_INDEX] * deg_per_rad * MAX_TICK / 360)
+    g_lo = round(2047 + units.lower[GRIPPER_INDEX] * DEG_PER_RAD * MAX_TICK / 360)
+    g_hi = round(2047 + units.upper[GRIPPER_INDEX] * DEG_PER_RAD * MAX_TICK / 360)
     out = {n: MotorCalibration(MOTOR_IDS[n], 0, 0, 0, MAX_TICK) for n in JOINT_NAMES}
     out[GRIPPER] = MotorCalibration(MOTOR_IDS[GRIPPER], 0, 0, g_lo, g_hi)
     return out

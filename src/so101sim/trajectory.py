@@ -38,13 +38,12 @@ from dataclasses import dataclass
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
 
-from .errors import TrajectoryLimitError
-from .units import BODY_JOINTS, JOINT_NAMES, ArmUnits, default_units
+from .errors import SettingError, TrajectoryLimitError
+from .units import JOINT_NAMES, ArmUnits, default_units
 
 log = logging.getLogger(__name__)
 
 _N = len(JOINT_NAMES)
-BODY_INDEX = JOINT_NAMES.index(BODY_JOINTS[0])  # a joint whose arm unit is the degree
 
 
 @dataclass(frozen=True)
@@ -59,7 +58,7 @@ class JointLimits:
         for what in ("velocity", "acceleration", "jerk"):
             values = tuple(float(v) for v in getattr(self, what))
             if len(values) != _N or not all(math.isfinite(v) and v > 0 for v in values):
-                raise ValueError(
+                raise SettingError(
                     f"{what} limits must be {_N} finite numbers > 0 (one per joint: "
                     f"{', '.join(JOINT_NAMES)}), got {values!r}"
                 )
@@ -72,9 +71,7 @@ class JointLimits:
 
     def in_arm_units(self, units: ArmUnits) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(velocity, acceleration, jerk) in arm units per s, s², s³ (gripper: 0–100 units)."""
-        # Arm units per degree of joint rotation: a degree in radians (a body joint's unit)
-        # over each joint's radians per arm unit.
-        per_deg = units.scale[BODY_INDEX] / units.scale
+        per_deg = units.per_degree()
         return (
             np.array(self.velocity) * per_deg,
             np.array(self.acceleration) * per_deg,

@@ -37,6 +37,9 @@ JOINT_NAMES: tuple[str, ...] = (
 )
 """The six joints, in the real arm's (and the model's) order."""
 
+DEG_PER_RAD = 180.0 / math.pi
+"""Degrees per radian (exact π): a body joint's arm unit is the degree."""
+
 GRIPPER = "gripper"
 GRIPPER_INDEX = JOINT_NAMES.index(GRIPPER)
 BODY_JOINTS: tuple[str, ...] = JOINT_NAMES[:GRIPPER_INDEX]
@@ -95,6 +98,11 @@ class ArmUnits:
         s = np.full(len(JOINT_NAMES), math.pi / 180.0)
         s[GRIPPER_INDEX] = (self.upper[GRIPPER_INDEX] - self.lower[GRIPPER_INDEX]) / 100.0
         return s
+
+    def per_degree(self) -> np.ndarray:
+        """Arm units per degree of joint rotation, per joint: 1 for body joints, and for the
+        gripper 100 over its range in degrees."""
+        return (math.pi / 180.0) / self.scale
 
     @property
     def offset(self) -> np.ndarray:
