@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from fakes import FakeClock
 
 from so101sim.errors import DurationError, JointNameError, JointValueError, RateError
 from so101sim.hardware import (
@@ -21,21 +22,6 @@ from so101sim.hardware import (
 )
 from so101sim.robot import SO101SimFollower, SO101SimFollowerConfig
 from so101sim.units import STARTING_POSE, ZERO_POSE
-
-
-class FakeClock:
-    """A clock whose time passes only when slept (or when the robot's calls cost time)."""
-
-    def __init__(self) -> None:
-        self.t = 100.0
-        self.sleeps: list[float] = []
-
-    def now(self) -> float:
-        return self.t
-
-    def sleep(self, seconds: float) -> None:
-        self.sleeps.append(seconds)
-        self.t += seconds
 
 
 class FakeArm:

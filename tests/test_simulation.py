@@ -4,27 +4,13 @@ import math
 import mujoco
 import numpy as np
 import pytest
+from fakes import FakeClock
 
 from so101sim import Simulation
 from so101sim.errors import JointLimitError, SimulationDivergedError
 from so101sim.model import load_model
 from so101sim.simulation import Observer, Pacer, ViewerObserver, advance
 from so101sim.units import STARTING_POSE, ZERO_POSE
-
-
-class FakeClock:
-    """A wall clock that only moves when the code under test sleeps (or work is simulated)."""
-
-    def __init__(self) -> None:
-        self.now = 100.0
-        self.sleeps: list[float] = []
-
-    def __call__(self) -> float:
-        return self.now
-
-    def sleep(self, s: float) -> None:
-        self.sleeps.append(s)
-        self.now += s
 
 
 class FakeViewer:
@@ -95,10 +81,10 @@ def test_pacer_sleeps_to_absolute_deadlines_without_drift():
     pacer = Pacer(clock=clock, sleep=clock.sleep)
     pacer.wait(0.0)  # anchors
     for k in range(1, 601):
-        clock.now += 0.003  # work takes 3 ms of wall time per 1/60 s frame
+        clock.t += 0.003  # work takes 3 ms of wall time per 1/60 s frame
         pacer.wait(k / 60)
         # after each wait, the wall clock is exactly on the frame's deadline
-        assert clock.now == pytest.approx(100.0 + k / 60, abs=1e-9)
+        assert clock.t == pytest.approx(100.0 + k / 60, abs=1e-9)
     assert len(clock.sleeps) == 600
     assert clock.sleeps[0] == pytest.approx(1 / 60 - 0.003)
 
@@ -108,15 +94,15 @@ def test_pacer_speed_and_catching_up():
     pacer = Pacer(speed=2.0, clock=clock, sleep=clock.sleep, max_lag=0.25)
     pacer.wait(1.0)
     pacer.wait(2.0)  # 1 s of sim at 2x = 0.5 s of wall time
-    assert clock.now == pytest.approx(100.5)
-    clock.now += 0.1  # fell behind by less than max_lag: no sleep, no re-anchor
+    assert clock.t == pytest.approx(100.5)
+    clock.t += 0.1  # fell behind by less than max_lag: no sleep, no re-anchor
     pacer.wait(2.1)
-    assert clock.now == pytest.approx(100.6) and pacer.lag_events == 0
-    clock.now += 5.0  # a long stall: re-anchor instead of racing
+    assert clock.t == pytest.approx(100.6) and pacer.lag_events == 0
+    clock.t += 5.0  # a long stall: re-anchor instead of racing
     pacer.wait(2.2)
     assert pacer.lag_events == 1
     pacer.wait(3.2)
-    assert clock.now == pytest.approx(105.6 + 0.5)
+    assert clock.t == pytest.approx(105.6 + 0.5)
 
 
 def test_pacer_rejects_bad_speed():
@@ -134,7 +120,7 @@ def test_viewer_is_synced_at_its_rate_and_paced_by_sim_time(sim):
     # a sync at t=0 and one every 1/50 s of simulated time after it
     assert viewer.syncs == 51
     # the fake wall clock advanced by exactly the simulated time: real time, no drift
-    assert clock.now == pytest.approx(100.0 + 1.0, abs=1e-9)
+    assert clock.t == pytest.approx(100.0 + 1.0, abs=1e-9)
 
 
 def test_closing_the_viewer_ends_the_run(sim):
@@ -197,11 +183,11 @@ def test_viewer_keeps_pacing_after_a_reset(sim):
     viewer = FakeViewer()
     sim.observers.append(ViewerObserver(viewer, Pacer(clock=clock, sleep=clock.sleep), fps=50))
     sim.move_to(ZERO_POSE, 1.0)
-    syncs, wall = viewer.syncs, clock.now
+    syncs, wall = viewer.syncs, clock.t
     sim.reset()  # simulated time goes back to 0
     sim.move_to(ZERO_POSE, 1.0)
     assert viewer.syncs - syncs == 51  # synced again at its rate
-    assert clock.now - wall == pytest.approx(1.0, abs=1e-9)  # and paced in real time again
+    assert clock.t - wall == pytest.approx(1.0, abs=1e-9)  # and paced in real time again
 
 
 def test_a_target_written_to_ctrl_directly_is_honoured(sim):
