@@ -24,8 +24,9 @@ import mujoco
 import numpy as np
 
 from so101sim import LAB_MOTION, Simulation, run_motion
+from so101sim.model import default_units
 from so101sim.motion import Move, plan_move
-from so101sim.units import JOINT_NAMES, STARTING_POSE, default_units
+from so101sim.units import JOINT_NAMES, STARTING_POSE
 
 PI_HANDOUT = 3.14159
 

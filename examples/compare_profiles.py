@@ -9,9 +9,9 @@ python examples/compare_profiles.py
 import dataclasses
 
 from so101sim import LAB_MOTION, STARTING_POSE, Move, load_model
+from so101sim.model import default_units
 from so101sim.preflight import preflight
 from so101sim.trajectory import LimitedProfile, minimum_steps
-from so101sim.units import default_units
 
 TIMESTEP = load_model().opt.timestep  # the physics timestep, s (0.002)
 

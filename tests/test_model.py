@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from so101sim.errors import ModelError
-from so101sim.model import arm_index, load_model, model_dir, scene_path
-from so101sim.units import JOINT_NAMES, STARTING_POSE, default_units
+from so101sim.model import arm_index, default_units, load_model, model_dir, scene_path
+from so101sim.units import JOINT_NAMES, STARTING_POSE
 
 
 def test_the_official_model_ships_in_the_package():

@@ -11,11 +11,11 @@ import pytest
 
 from so101sim import cli, lab
 from so101sim.errors import MotionFileError, So101SimError
-from so101sim.model import load_model
+from so101sim.model import default_units, load_model
 from so101sim.motion import LAB_MOTION, Hold, Move, run_motion
 from so101sim.motionfile import lab_motion_path, load_motion, parse_motion
 from so101sim.simulation import Simulation
-from so101sim.units import JOINT_NAMES, STARTING_POSE, ZERO_POSE, default_units
+from so101sim.units import JOINT_NAMES, STARTING_POSE, ZERO_POSE
 
 
 def _parse(text: str):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from so101sim import cli, posefinder
-from so101sim.model import arm_index, arm_units
+from so101sim.model import arm_index, arm_units, default_units
 from so101sim.motionfile import parse_motion
 from so101sim.posefinder import (
     PoseWatcher,
@@ -20,7 +20,7 @@ from so101sim.posefinder import (
     watch_poses,
 )
 from so101sim.simulation import Pacer
-from so101sim.units import JOINT_NAMES, STARTING_POSE, default_units
+from so101sim.units import JOINT_NAMES, STARTING_POSE
 
 SLIDER_POSE = {
     "shoulder_pan": 30.0,

@@ -8,10 +8,11 @@ import pytest
 
 from so101sim import cli
 from so101sim.errors import SettingError
+from so101sim.model import default_units
 from so101sim.motion import Hold, Move
 from so101sim.motionfile import lab_motion_path
 from so101sim.preflight import Thresholds, check_motion_file, format_report, preflight
-from so101sim.units import JOINT_NAMES, STARTING_POSE, default_units
+from so101sim.units import JOINT_NAMES, STARTING_POSE
 
 # The gripper tipped down into the floor in front of the arm.
 INTO_FLOOR = """\

@@ -22,7 +22,7 @@ from so101sim.errors import (
     RobotConfigError,
     So101SimError,
 )
-from so101sim.model import arm_index, load_model
+from so101sim.model import arm_index, default_units, load_model
 from so101sim.robot import (
     GRIPPER_TORQUE_FRACTION,
     SO101SimFollower,
@@ -30,7 +30,7 @@ from so101sim.robot import (
     parse_action,
     relative_caps,
 )
-from so101sim.units import JOINT_NAMES, STARTING_POSE, ZERO_POSE, default_units
+from so101sim.units import JOINT_NAMES, STARTING_POSE, ZERO_POSE
 
 KEYS = [f"{n}.pos" for n in JOINT_NAMES]
 GOAL = {f"{n}.pos": v for n, v in ZERO_POSE.items()}

@@ -193,16 +193,16 @@ def test_viewer_keeps_pacing_after_a_reset(sim):
 def test_a_target_written_to_ctrl_directly_is_honoured(sim):
     import mujoco
 
-    from so101sim.units import default_units
+    from so101sim.model import default_units
 
     sim.data.ctrl[:6] = default_units().to_radians(np.array([0.0, 0, 0, 0, 0, 0]))
     assert sim.commanded() == pytest.approx(ZERO_POSE)
     sim.hold(2.0)  # holds what is in ctrl, not the earlier target
     assert sim.pose()["shoulder_lift"] == pytest.approx(0.0, abs=1.0)
     fresh = mujoco.MjData(sim.model)  # never commanded: targets untouched
-    from so101sim.simulation import commanded_target
+    from so101sim.simulation import Simulation
 
-    assert commanded_target(fresh) is None
+    assert not Simulation.attach(sim.model, fresh).was_commanded
 
 
 def test_nan_state_is_reported_even_without_a_mujoco_warning(sim):

@@ -10,6 +10,7 @@ import types
 import pytest
 
 from so101sim.errors import CalibrationError, DurationError, LeaderError, RateError
+from so101sim.model import default_units
 from so101sim.robot import SO101SimFollower, SO101SimFollowerConfig
 from so101sim.teleop import (
     MOTOR_IDS,
@@ -23,7 +24,7 @@ from so101sim.teleop import (
     teleoperate,
     ticks_to_pose,
 )
-from so101sim.units import JOINT_NAMES, default_units
+from so101sim.units import JOINT_NAMES
 
 # A calibration file as LeRobot writes it (values of a typical SO-101 leader).
 LEROBOT_JSON = {

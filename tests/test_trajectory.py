@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from so101sim.errors import SettingError, So101SimError, TrajectoryLimitError
+from so101sim.model import default_units
 from so101sim.motion import PROFILES, Hold, Move, get_profile, run_motion
 from so101sim.simulation import Simulation
 from so101sim.trajectory import (
@@ -17,7 +18,7 @@ from so101sim.trajectory import (
     LimitedProfile,
     check_limited_moves,
 )
-from so101sim.units import JOINT_NAMES, STARTING_POSE, ZERO_POSE, default_units
+from so101sim.units import JOINT_NAMES, STARTING_POSE, ZERO_POSE
 
 DT = 0.002
 START = default_units().pose_to_array(STARTING_POSE)

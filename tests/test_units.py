@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 
 from so101sim.errors import JointLimitError, JointNameError, JointValueError
+from so101sim.model import default_units
 from so101sim.units import (
     JOINT_NAMES,
     STARTING_POSE,
     ZERO_POSE,
-    default_units,
     format_pose,
     normalize_joint_name,
     parse_pose,

@@ -5,7 +5,9 @@ Start with :class:`Simulation`, the lab's helpers in :mod:`so101sim.lab`, or the
 :class:`SO101SimFollower`.
 """
 
-from . import gl as _gl  # noqa: F401  (picks the OpenGL backend before mujoco is imported)
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from .errors import (
     CalibrationError,
     CameraError,
@@ -29,14 +31,63 @@ from .errors import (
     TrajectoryLimitError,
     ViewerError,
 )
-from .model import load_model, model_dir, scene_path
-from .motion import LAB_MOTION, Hold, Move, RunResult, SegmentResult, run_motion
-from .motionfile import MotionFile, lab_motion_path, load_motion
-from .preflight import PreflightReport, Thresholds, check_motion_file, preflight
-from .recording import Recorder, VideoSettings, plot_run
-from .robot import SO101SimFollower, SO101SimFollowerConfig
-from .simulation import Pacer, Simulation
-from .units import JOINT_NAMES, STARTING_POSE, ZERO_POSE
+
+# Everything else is imported on first use (PEP 562), only to keep ``import so101sim`` fast:
+# it imports no MuJoCo, no renderer and sets no environment variable. ``from so101sim import
+# Simulation`` imports what Simulation needs, and no more.
+_LAZY: dict[str, str] = {
+    "load_model": "model",
+    "model_dir": "model",
+    "scene_path": "model",
+    "LAB_MOTION": "motion",
+    "Hold": "motion",
+    "Move": "motion",
+    "RunResult": "motion",
+    "Segment": "motion",
+    "run_motion": "motion",
+    "Pacer": "simulation",
+    "SegmentResult": "simulation",
+    "Simulation": "simulation",
+    "MotionFile": "motionfile",
+    "lab_motion_path": "motionfile",
+    "load_motion": "motionfile",
+    "PreflightReport": "preflight",
+    "Thresholds": "preflight",
+    "check_motion_file": "preflight",
+    "preflight": "preflight",
+    "Recorder": "recording",
+    "VideoSettings": "recording",
+    "plot_run": "recording",
+    "SO101SimFollower": "robot",
+    "SO101SimFollowerConfig": "robot",
+    "JOINT_NAMES": "units",
+    "STARTING_POSE": "units",
+    "ZERO_POSE": "units",
+}
+
+if TYPE_CHECKING:
+    from .model import load_model, model_dir, scene_path
+    from .motion import LAB_MOTION, Hold, Move, RunResult, Segment, run_motion
+    from .motionfile import MotionFile, lab_motion_path, load_motion
+    from .preflight import PreflightReport, Thresholds, check_motion_file, preflight
+    from .recording import Recorder, VideoSettings, plot_run
+    from .robot import SO101SimFollower, SO101SimFollowerConfig
+    from .simulation import Pacer, SegmentResult, Simulation
+    from .units import JOINT_NAMES, STARTING_POSE, ZERO_POSE
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'so101sim' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
 
 __version__ = "0.1.0"
 
@@ -70,6 +121,7 @@ __all__ = [
     "RunResult",
     "SO101SimFollower",
     "SO101SimFollowerConfig",
+    "Segment",
     "SegmentResult",
     "SettingError",
     "Simulation",

@@ -25,16 +25,16 @@ from .model import arm_units, load_model, model_dir
 from .motion import (
     Hold,
     RunResult,
+    Segment,
     SegmentResult,
-    Step,
-    check_duration,
     run_motion,
-    validate_steps,
+    validate_segments,
 )
 from .motionfile import lab_motion_path, load_motion
 from .simulation import Pacer, Simulation, ViewerObserver
 from .trajectory import check_limited_moves
 from .units import GRIPPER, STARTING_POSE, Pose, format_pose
+from .validation import check_duration
 from .viewer import has_display, open_viewer, view
 
 if TYPE_CHECKING:
@@ -117,10 +117,12 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _run_steps(args: argparse.Namespace, steps: Sequence[Step], start: Pose = STARTING_POSE) -> int:
+def _run_steps(
+    args: argparse.Namespace, steps: Sequence[Segment], start: Pose = STARTING_POSE
+) -> int:
     pacer = Pacer(args.speed)  # checks --speed before anything opens
     sim = Simulation(args.model, initial_pose=start)
-    validate_steps(sim.model, steps)  # every target and duration, before anything runs
+    validate_segments(sim.model, steps)  # every target and duration, before anything runs
     recorder, bar = recorder_from_args(args, sim, sum(s.duration for s in steps))  # checks paths
     use_viewer = not args.headless and has_display()
     if not args.headless and not use_viewer:
@@ -382,8 +384,8 @@ def _add_teleop_parser(sub: argparse._SubParsersAction) -> None:
 def cmd_teleop(args: argparse.Namespace) -> int:
     from . import teleop
     from .hardware import check_fps
-    from .motion import check_duration
     from .robot import SO101SimFollower, SO101SimFollowerConfig
+    from .validation import check_duration
 
     # Check the numbers before opening anything (port, robot, viewer).
     fps = check_fps(args.fps)

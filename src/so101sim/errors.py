@@ -23,13 +23,18 @@ class JointLimitError(JointValueError):
     """A joint target lies outside the joint's limits (in the arm's units)."""
 
 
-class DurationError(So101SimError, ValueError):
-    """A duration is not a finite number greater than zero."""
-
-
 class SettingError(So101SimError, ValueError):
     """A setting that is not valid: a playback speed, a step count, a profile name, limits or
-    thresholds. The message gives the valid values."""
+    thresholds. The message gives the valid values.
+
+    The more specific kinds of setting derive from it: :class:`DurationError`,
+    :class:`RateError`, :class:`RecordingError` and :class:`RobotConfigError`; catch
+    ``SettingError`` for all of them.
+    """
+
+
+class DurationError(SettingError):
+    """A duration is not a finite number of seconds greater than zero (and at most a day)."""
 
 
 class ModelError(So101SimError):
@@ -77,7 +82,7 @@ class RenderBackendError(So101SimError, RuntimeError):
     """No OpenGL backend could render offscreen (EGL, OSMesa); the message says what to install."""
 
 
-class RecordingError(So101SimError, ValueError):
+class RecordingError(SettingError):
     """Invalid recording settings (frame size, frame rate, quality preset)."""
 
 
@@ -107,7 +112,7 @@ class DeviceAlreadyConnectedError(So101SimError, ConnectionError):
         super().__init__(message)
 
 
-class RobotConfigError(So101SimError, ValueError):
+class RobotConfigError(SettingError):
     """A simulated robot's configuration holds a value it cannot use."""
 
 
@@ -119,5 +124,5 @@ class LeaderError(So101SimError, RuntimeError):
     """The leader arm cannot be reached: SDK not installed, port missing, a motor not answering."""
 
 
-class RateError(So101SimError, ValueError):
-    """A rate (goals or ticks per second) is not a finite number greater than zero."""
+class RateError(SettingError):
+    """A rate (goals, frames or ticks per second) is not a finite number greater than zero."""

@@ -28,8 +28,8 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from .errors import DurationError, RateError
-from .motion import check_duration
 from .units import JOINT_NAMES, LEROBOT_SUFFIX, Pose, parse_pose
+from .validation import check_duration
 
 log = logging.getLogger(__name__)
 

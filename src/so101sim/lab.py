@@ -35,10 +35,9 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from .model import arm_index, arm_units
-from .motion import SegmentResult, hold, move
-from .simulation import set_commanded_target, viewer_observer
-from .units import JOINT_NAMES, Pose, default_units
+from .model import default_units
+from .simulation import SegmentResult, Simulation
+from .units import JOINT_NAMES, Pose
 
 __all__ = [
     "convert_to_dictionary",
@@ -53,11 +52,13 @@ __all__ = [
 def convert_to_dictionary(qpos: Sequence[float] | np.ndarray) -> dict[str, float]:
     """Joint angles in radians (the first six values of ``qpos``) -> the arm's units.
 
-    Body joints in degrees (exact π), gripper on 0–100 over the gripper joint's range. The
-    handout's ``qpos[5] * 100 / 3.14159`` for the gripper was wrong (see the module docs).
+    Body joints in degrees (exact π), gripper on 0–100 over the gripper joint's range (the
+    shipped model's). The handout's ``qpos[5] * 100 / 3.14159`` for the gripper was wrong (see
+    the module docs).
     """
     q = np.asarray(qpos, dtype=float)[: len(JOINT_NAMES)]
-    return default_units().array_to_pose(default_units().from_radians(q))
+    units = default_units()
+    return units.array_to_pose(units.from_radians(q))
 
 
 def convert_to_list(position_dict: Pose) -> list[float]:
@@ -70,23 +71,13 @@ def convert_to_list(position_dict: Pose) -> list[float]:
     return units.to_radians(units.pose_to_array(position_dict, check_limits=False)).tolist()
 
 
-def _observers(viewer: Any) -> list[Any]:
-    return [] if viewer is None else [viewer_observer(viewer)]
-
-
 def set_initial_pose(d: mujoco.MjData, position_dict: Pose) -> None:
     """Place the arm at ``position_dict`` (at rest) and command it to stay there.
 
     Unlike the handout, this also sets the position targets, so the arm holds the pose rather
     than falling towards the targets' default of 0 on the first step.
     """
-    m = d.model
-    idx = arm_index(m)
-    q = arm_units(m).to_radians(arm_units(m).pose_to_array(position_dict))
-    d.qpos[idx.qpos] = q
-    d.qvel[idx.dof] = 0.0
-    set_commanded_target(m, d, q)
-    mujoco.mj_forward(m, d)
+    Simulation.attach(d.model, d).set_pose(position_dict)
 
 
 def send_position_command(d: mujoco.MjData, position_dict: Pose) -> None:
@@ -95,9 +86,8 @@ def send_position_command(d: mujoco.MjData, position_dict: Pose) -> None:
     MuJoCo's position actuators then pull each joint towards its target with the model's PD
     gains. Raises before changing anything if a name, value or limit is wrong.
     """
-    m = d.model
-    units = arm_units(m)
-    set_commanded_target(m, d, units.to_radians(units.pose_to_array(position_dict)))
+    sim = Simulation.attach(d.model, d)
+    sim.command_array(sim.units.pose_to_array(position_dict), check=False)
 
 
 def move_to_pose(
@@ -111,10 +101,10 @@ def move_to_pose(
     ``desired_position`` over ``duration`` seconds of simulated time.
 
     Exactly ``round(duration / timestep)`` physics steps; with a ``viewer``, paced to the wall
-    clock. Returns the move's :class:`~so101sim.motion.SegmentResult` (the handout returned
-    nothing; ignoring the result is fine). If the viewer is closed, returns early.
+    clock. Returns the move's :class:`~so101sim.simulation.SegmentResult` (the handout
+    returned nothing; ignoring the result is fine). If the viewer is closed, returns early.
     """
-    return move(m, d, desired_position, duration, observers=_observers(viewer), phase="move")
+    return Simulation.attach(m, d).move_to(desired_position, duration, viewer=viewer)
 
 
 def hold_position(
@@ -125,4 +115,4 @@ def hold_position(
     Before any command, holds the pose it finds. (The handout re-read the sagging measured pose
     and let the arm creep under gravity.)
     """
-    return hold(m, d, duration, observers=_observers(viewer), phase="hold")
+    return Simulation.attach(m, d).hold(duration, viewer=viewer)

@@ -11,6 +11,7 @@ import logging
 import threading
 import weakref
 from dataclasses import dataclass
+from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 
@@ -118,6 +119,17 @@ def arm_index(model: mujoco.MjModel) -> ArmIndex:
     )
     _index_cache[model] = index
     return index
+
+
+@lru_cache(maxsize=1)
+def default_units() -> ArmUnits:
+    """Units for the shipped model, read from its joint ranges (parsed, not compiled): for code
+    that has no model at hand. Where a model is known, use :func:`arm_units` of that model."""
+    spec = mujoco.MjSpec.from_file(str(model_dir() / "so101_new_calib.xml"))
+    ranges = {j.name: np.array(j.range, dtype=float) for j in spec.joints}
+    lower = np.array([ranges[n][0] for n in JOINT_NAMES])
+    upper = np.array([ranges[n][1] for n in JOINT_NAMES])
+    return ArmUnits(lower=lower, upper=upper)
 
 
 def arm_units(model: mujoco.MjModel) -> ArmUnits:

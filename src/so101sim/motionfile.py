@@ -58,7 +58,8 @@ from typing import Any
 import numpy as np
 
 from .errors import DurationError, JointNameError, JointValueError, MotionFileError
-from .motion import PROFILES, Hold, Move, Step, check_duration
+from .model import default_units
+from .motion import PROFILES, Hold, Move, Segment
 from .units import (
     DEG_PER_RAD,
     GRIPPER,
@@ -68,9 +69,9 @@ from .units import (
     ZERO_POSE,
     ArmUnits,
     check_number,
-    default_units,
     normalize_joint_name,
 )
+from .validation import check_duration
 
 BUILTIN_POSES: dict[str, dict[str, float]] = {"rest": dict(STARTING_POSE), "zero": dict(ZERO_POSE)}
 """Poses every motion file may use without defining them."""
@@ -95,7 +96,7 @@ class MotionFile:
 
     path: str
     start: dict[str, float]  # the pose the arm starts in, all six joints
-    steps: tuple[Step, ...]  # full-pose moves and holds, ready for run_motion
+    steps: tuple[Segment, ...]  # full-pose moves and holds, ready for run_motion
     lines: tuple[int, ...]  # the line each step starts on
     poses: dict[str, dict[str, float]] = field(default_factory=dict)  # the file's own poses
     description: str = ""
@@ -283,7 +284,7 @@ class _Loader:
                 "a motion file needs at least one step: [[steps]] with move, hold or gripper",
             )
         current = np.array([start[n] for n in JOINT_NAMES])
-        steps: list[Step] = []
+        steps: list[Segment] = []
         lines: list[int] = []
         for i, raw in enumerate(raw_steps):
             where = ("steps", i)

@@ -50,7 +50,7 @@ import numpy as np
 
 from .errors import SettingError
 from .model import arm_index, load_model
-from .motion import RunResult, Step, run_motion
+from .motion import RunResult, Segment, run_motion
 from .motionfile import load_motion
 from .simulation import Observer, Simulation
 from .trajectory import check_limited_moves
@@ -176,7 +176,7 @@ def _fmt(joint: str, v: float) -> str:
 
 
 def preflight(
-    steps: Sequence[Step],
+    steps: Sequence[Segment],
     *,
     start: Pose = STARTING_POSE,
     model: mujoco.MjModel | str | Path | None = None,

@@ -58,7 +58,7 @@ from .errors import (
 )
 from .hardware import MOTOR_KEYS
 from .model import arm_index, load_model
-from .simulation import Pacer, Simulation, advance, commanded_target, set_commanded_target
+from .simulation import Pacer, Simulation
 from .units import (
     GRIPPER_INDEX,
     JOINT_NAMES,
@@ -387,7 +387,7 @@ class SO101SimFollower:
             safe = self._clamp_relative(names, wanted, present[idx])
             sent = self._clip_to_limits(names, safe, idx)
             full[idx] = sent
-            set_commanded_target(self._sim.model, self._sim.data, self._sim.units.to_radians(full))
+            self._sim.command_array(full, check=False)
             if self.config.mode == "lockstep" and self.config.lockstep_action_seconds:
                 self._advance(self.config.lockstep_action_seconds)
         return {f"{n}{LEROBOT_SUFFIX}": float(v) for n, v in zip(names, sent, strict=True)}
@@ -520,14 +520,10 @@ class SO101SimFollower:
 
     def _advance(self, seconds: float) -> None:
         """Step ``seconds`` of simulated time holding the goals (lock held by the caller)."""
-        m, d = self._sim.model, self._sim.data
-        n = round(seconds / m.opt.timestep)
+        n = round(seconds / self._sim.timestep)
         if n <= 0:
             return
-        target = commanded_target(d)
-        if target is None:
-            target = d.qpos[self._index.qpos].copy()
-        advance(m, d, np.repeat(target[None], n, axis=0), (), "robot")
+        self._sim.step(n)
         self._sync_viewer()
 
     def _sync_viewer(self) -> None:

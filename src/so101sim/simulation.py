@@ -19,20 +19,19 @@ import threading
 import time
 import weakref
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import mujoco
 import numpy as np
 from mujoco import rollout as _rollout
 
-from .errors import SettingError, SimulationDivergedError
+from .errors import ModelError, SimulationDivergedError
 from .model import ArmIndex, arm_index, arm_units, load_model
-from .units import STARTING_POSE, ArmUnits, Pose
-
-if TYPE_CHECKING:
-    from .motion import SegmentResult
+from .profiles import Profile, get_profile, plan, steps_for
+from .units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose
+from .validation import MAX_DURATION_S, check_count, check_range
 
 log = logging.getLogger(__name__)
 
@@ -45,34 +44,18 @@ _DIVERGENCE_WARNINGS = (
 )
 
 
-# ---------------------------------------------------------------------------- commanded target
-# The position targets live in d.ctrl, where MuJoCo reads them, so that a target written there
-# directly (as the handout's own helpers do) is honoured. This set only records which MjData
-# have been commanded through so101sim, to tell "never commanded" from "commanded to 0".
-_commanded: weakref.WeakSet[mujoco.MjData] = weakref.WeakSet()
-
-
-def commanded_target(d: mujoco.MjData) -> np.ndarray | None:
-    """The arm's current position targets (radians, arm joint order), read from ``d.ctrl``;
-    None if nothing was ever commanded (targets untouched since the data was made)."""
-    q = d.ctrl[arm_index(d.model).actuator]
-    if d not in _commanded and not q.any():
-        return None
-    return q.copy()
-
-
-def set_commanded_target(m: mujoco.MjModel, d: mujoco.MjData, q: np.ndarray) -> None:
-    """Command the arm's position actuators to ``q`` (radians, arm joint order)."""
-    d.ctrl[arm_index(m).actuator] = q
-    _commanded.add(d)
-
-
 def measured_radians(m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
     """The arm's six joint angles in radians, read from ``d.qpos``."""
     return d.qpos[arm_index(m).qpos].copy()
 
 
 # ---------------------------------------------------------------------------- pacing
+MAX_SPEED = 1000.0
+"""The fastest playback a :class:`Pacer` accepts, in multiples of real time."""
+MIN_SPEED = 1e-3
+"""The slowest playback a :class:`Pacer` accepts (1/1000 of real time)."""
+
+
 class Pacer:
     """Keeps simulated time in step with the wall clock, for showing a run to a person.
 
@@ -90,16 +73,16 @@ class Pacer:
         sleep: Callable[[float], Any] = time.sleep,
         max_lag: float = 0.25,
     ) -> None:
-        if (
-            isinstance(speed, bool)
-            or not isinstance(speed, int | float)
-            or not (math.isfinite(speed) and speed > 0)
-        ):
-            raise SettingError(
-                f"speed = {speed!r} is invalid; expected a finite multiple of real time > 0 "
+        self.speed = check_range(
+            speed,
+            "speed",
+            low=MIN_SPEED,
+            high=MAX_SPEED,
+            expected=(
+                f"a multiple of real time from {MIN_SPEED:g} to {MAX_SPEED:g} "
                 "(1 = real time, 0.5 = half speed)"
-            )
-        self.speed = speed
+            ),
+        )
         self.clock = clock
         self.sleep = sleep
         self.max_lag = max_lag
@@ -138,10 +121,6 @@ class Trace:
     ctrl: np.ndarray  # (n, 6)
     qpos: np.ndarray  # (n, 6)
     completed: bool = True
-
-    @classmethod
-    def empty(cls) -> Trace:
-        return cls(np.empty(0), np.empty((0, 6)), np.empty((0, 6)))
 
     def __len__(self) -> int:
         return len(self.time)
@@ -199,19 +178,6 @@ class ViewerObserver(Observer):
         self._last = d.time
         self._next = d.time + self.period - 1e-9
         return True
-
-
-_viewer_observers: weakref.WeakKeyDictionary[Any, ViewerObserver] = weakref.WeakKeyDictionary()
-
-
-def viewer_observer(viewer: Any) -> ViewerObserver:
-    """The one :class:`ViewerObserver` of ``viewer``, so that successive moves and holds on the
-    same viewer share one wall-clock timeline (no pause, no catch-up between them)."""
-    obs = _viewer_observers.get(viewer)
-    if obs is None:
-        obs = ViewerObserver(viewer)
-        _viewer_observers[viewer] = obs
-    return obs
 
 
 # ---------------------------------------------------------------------------- stepping
@@ -326,12 +292,62 @@ def advance(
                 completed = False
         if not completed:
             break
-    if done:
-        _commanded.add(d)
     return Trace(times[:done], targets[:done], qpos[:done], completed)
 
 
+# ---------------------------------------------------------------------------- results
+@dataclass(frozen=True)
+class SegmentResult:
+    """What one move or hold did. Poses are dicts in the arm's units; arrays are per step."""
+
+    phase: str
+    kind: str  # "move" | "hold" | "step"
+    start_time: float
+    end_time: float
+    steps: int
+    start: dict[str, float]  # commanded pose at the start
+    target: dict[str, float]  # final commanded pose
+    reached: dict[str, float]  # measured pose at the end
+    max_tracking_error: dict[str, float]  # max |commanded - measured| over the segment
+    completed: bool
+    times: np.ndarray = field(repr=False)  # (n,) simulated time after each step
+    commanded: np.ndarray = field(repr=False)  # (n, 6) arm units
+    measured: np.ndarray = field(repr=False)  # (n, 6) arm units
+
+    @property
+    def duration(self) -> float:
+        return self.end_time - self.start_time
+
+    @property
+    def final_error(self) -> dict[str, float]:
+        """|target - reached| per joint at the end of the segment."""
+        return {n: abs(self.target[n] - self.reached[n]) for n in JOINT_NAMES}
+
+    @property
+    def worst_tracking_error(self) -> tuple[str, float]:
+        """(joint, error) of the largest tracking error over the segment."""
+        name = max(self.max_tracking_error, key=self.max_tracking_error.__getitem__)
+        return name, self.max_tracking_error[name]
+
+
 # ---------------------------------------------------------------------------- the object
+@dataclass
+class _ArmState:
+    """What a :class:`Simulation` knows beyond ``MjData``: whether the arm was ever commanded
+    (to tell "never commanded" from "commanded to 0"), and one viewer timeline per viewer."""
+
+    commanded: bool = False
+    viewers: weakref.WeakKeyDictionary[Any, ViewerObserver] = field(
+        default_factory=weakref.WeakKeyDictionary
+    )
+
+
+# Handout-style code passes a bare (MjModel, MjData) to every call; Simulation.attach() wraps it,
+# and this table lets successive wrappers of the same MjData share one _ArmState (it never
+# holds the MjData itself, so it keeps nothing alive).
+_attached: weakref.WeakKeyDictionary[mujoco.MjData, _ArmState] = weakref.WeakKeyDictionary()
+
+
 class Simulation:
     """An SO-101 in MuJoCo: model, data and clock, in the arm's units.
 
@@ -339,29 +355,51 @@ class Simulation:
     >>> r = sim.move_to(ZERO_POSE, 2.0)         # 2 s of simulated time, 1000 steps
     >>> r.max_tracking_error["shoulder_lift"]   # degrees
 
-    ``observers`` (a viewer, a recorder, a log) see every run; ``lock`` guards the data for
-    callers that share the simulation between threads.
+    The simulation owns its state: the position targets (kept in ``data.ctrl``, where MuJoCo
+    reads them, so a target written there directly is honoured), the observers that see every
+    run (a recorder, a log), and one wall-clock timeline per viewer. ``lock`` guards the data
+    for callers that share the simulation between threads.
+
+    ``data`` (optional) is an existing ``MjData`` of ``model`` to drive instead of a new one;
+    :meth:`attach` is the way for handout-style code that holds a bare ``(model, data)``.
     """
 
     def __init__(
         self,
         model: mujoco.MjModel | str | Path | None = None,
         *,
+        data: mujoco.MjData | None = None,
         initial_pose: Pose | None = STARTING_POSE,
     ) -> None:
         self.model: mujoco.MjModel = (
             model if isinstance(model, mujoco.MjModel) else load_model(model)
         )
-        self.data = mujoco.MjData(self.model)
+        if data is not None:
+            _check_data(self.model, data)
+        self.data = data if data is not None else mujoco.MjData(self.model)
         self.index: ArmIndex = arm_index(self.model)
         self.units: ArmUnits = arm_units(self.model)
         self.observers: list[Observer] = []
         self.lock = threading.RLock()
+        self._state = _ArmState()
         self.initial_pose = dict(initial_pose) if initial_pose is not None else None
         if initial_pose is not None:
             self.set_pose(initial_pose)
-        else:
+        elif data is None:
             mujoco.mj_forward(self.model, self.data)
+
+    @classmethod
+    def attach(cls, model: mujoco.MjModel, data: mujoco.MjData) -> Simulation:
+        """A Simulation driving an existing ``(model, data)`` as it is (nothing is reset or
+        moved). Every Simulation attached to the same ``data`` shares its commanded-target
+        state and viewer timelines, so the lab's ``(m, d)`` helpers can be called one after
+        another as thin wrappers."""
+        sim = cls(model, data=data, initial_pose=None)
+        state = _attached.get(data)
+        if state is None:
+            state = _attached[data] = _ArmState(commanded=bool(data.ctrl.any()))
+        sim._state = state
+        return sim
 
     # -- clock
     @property
@@ -381,7 +419,7 @@ class Simulation:
 
     def pose_array(self) -> np.ndarray:
         """The measured pose as an array in arm units."""
-        return self.units.from_radians(measured_radians(self.model, self.data))
+        return self.units.from_radians(self.data.qpos[self.index.qpos])
 
     def commanded(self) -> dict[str, float]:
         """The last commanded target (the measured pose before any command), rounded to 1e-9
@@ -389,10 +427,17 @@ class Simulation:
         return self.units.array_to_pose(np.round(self.commanded_array(), 9) + 0.0)
 
     def commanded_array(self) -> np.ndarray:
-        q = commanded_target(self.data)
-        if q is None:
+        """The position targets in arm units, read from ``data.ctrl``; the measured pose if the
+        arm was never commanded (targets untouched since the data was made)."""
+        q = self.data.ctrl[self.index.actuator]
+        if not self._state.commanded and not q.any():
             return self.pose_array()
         return self.units.from_radians(q)
+
+    @property
+    def was_commanded(self) -> bool:
+        """Whether a target was ever set (through so101sim or written to ``data.ctrl``)."""
+        return self._state.commanded or bool(self.data.ctrl[self.index.actuator].any())
 
     def limits(self) -> dict[str, tuple[float, float]]:
         """Joint name -> (lower, upper) in the arm's units."""
@@ -405,80 +450,176 @@ class Simulation:
         with self.lock:
             self.data.qpos[self.index.qpos] = q
             self.data.qvel[self.index.dof] = 0.0
-            set_commanded_target(self.model, self.data, q)
+            self._set_target(q)
             mujoco.mj_forward(self.model, self.data)
 
     def command(self, pose: Pose, *, clip: bool = False) -> dict[str, float]:
         """Set the position targets; joints left out keep their last target. Returns the full
         target that is now commanded (arm units)."""
         values = self.units.pose_to_array(pose, base=self.commanded_array(), clip=clip)
-        with self.lock:
-            set_commanded_target(self.model, self.data, self.units.to_radians(values))
+        self.command_array(values, check=False)
         return self.units.array_to_pose(values)
+
+    def command_array(self, values: np.ndarray, *, check: bool = True) -> None:
+        """Set all six position targets from an array in arm units (JOINT_NAMES order).
+
+        With ``check`` (the default) the values are checked against the joint limits first
+        (:class:`~so101sim.errors.JointLimitError`); pass ``check=False`` only for values
+        already validated."""
+        v = np.asarray(values, dtype=float)
+        if check:
+            v = self.units.check_limits(v)
+        with self.lock:
+            self._set_target(self.units.to_radians(v))
+
+    def _set_target(self, q: np.ndarray) -> None:
+        self.data.ctrl[self.index.actuator] = q
+        self._state.commanded = True
 
     def reset(self) -> None:
         """Back to time 0 at the initial pose."""
         with self.lock:
             mujoco.mj_resetData(self.model, self.data)
-            _commanded.discard(self.data)
+            self._state.commanded = False
         if self.initial_pose is not None:
             self.set_pose(self.initial_pose)
 
-    # -- stepping
-    def step(self, n: int = 1, *, viewer: Any = None) -> Trace:
-        """Take ``n`` physics steps holding the current target."""
-        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 0:
-            raise SettingError(f"n = {n!r} is invalid; expected a whole number of steps >= 0")
-        target = self.units.to_radians(self.commanded_array())
-        with self.lock:
-            return advance(
-                self.model,
-                self.data,
-                np.repeat(target[None], n, axis=0),
-                self._observers(viewer),
-                "step",
-            )
-
-    def _observers(self, viewer: Any) -> list[Observer]:
-        obs = list(self.observers)
-        if viewer is not None:
-            obs.append(viewer_observer(viewer))
+    # -- observers
+    def viewer_observer(self, viewer: Any) -> ViewerObserver:
+        """The one :class:`ViewerObserver` of ``viewer`` for this simulation, so that
+        successive moves and holds on the same viewer share one wall-clock timeline (no pause,
+        no catch-up between them)."""
+        obs = self._state.viewers.get(viewer)
+        if obs is None:
+            obs = self._state.viewers[viewer] = ViewerObserver(viewer)
         return obs
+
+    def _observers(self, viewer: Any, extra: Sequence[Observer]) -> list[Observer]:
+        obs = [*self.observers, *extra]
+        if viewer is not None:
+            obs.append(self.viewer_observer(viewer))
+        return obs
+
+    # -- stepping
+    def advance(
+        self,
+        targets: np.ndarray,
+        *,
+        viewer: Any = None,
+        observers: Sequence[Observer] = (),
+        phase: str = "",
+    ) -> Trace:
+        """Step ``len(targets)`` times, commanding row i of ``targets`` (arm units, shape
+        ``(n, 6)``) during step i; every observer sees the run."""
+        q = self.units.to_radians(np.asarray(targets, dtype=float).reshape(-1, len(JOINT_NAMES)))
+        with self.lock:
+            if len(q):
+                self._state.commanded = True
+            return advance(self.model, self.data, q, self._observers(viewer, observers), phase)
+
+    def step(self, n: int = 1, *, viewer: Any = None, observers: Sequence[Observer] = ()) -> Trace:
+        """Take ``n`` physics steps holding the current target."""
+        n = check_count(n, "n", unit=" steps", maximum=round(MAX_DURATION_S / self.timestep))
+        target = self.commanded_array()
+        return self.advance(
+            np.broadcast_to(target, (n, len(target))),
+            viewer=viewer,
+            observers=observers,
+            phase="step",
+        )
+
+    def plan_move(
+        self,
+        target: Pose,
+        duration: float,
+        *,
+        profile: str | Profile = "linear",
+        clip: bool = False,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Validate a move and compute all its targets: ``(start, targets)`` in arm units.
+        Nothing moves.
+
+        Raises:
+            JointNameError, JointValueError, JointLimitError, DurationError, SettingError.
+        """
+        goal = self.units.pose_to_array(target, clip=clip)
+        n = steps_for(duration, self.timestep)
+        prof = get_profile(profile, self.units)
+        start = self.commanded_array()
+        return start, plan(start, goal, n, self.timestep, prof)
 
     def move_to(
         self,
         target: Pose,
         duration: float,
         *,
-        profile: str = "linear",
+        profile: str | Profile = "linear",
         viewer: Any = None,
+        observers: Sequence[Observer] = (),
         clip: bool = False,
         phase: str = "move",
     ) -> SegmentResult:
         """Move from the last commanded target to ``target`` in ``duration`` s of simulated time.
 
-        Returns a :class:`so101sim.motion.SegmentResult` (commanded and reached pose, largest
-        tracking error per joint). Nothing moves if the target or duration is invalid.
+        Returns a :class:`SegmentResult` (commanded and reached pose, largest tracking error per
+        joint). Nothing moves if the target, duration or profile is invalid.
         """
-        from .motion import move
-
         with self.lock:
-            return move(
-                self.model,
-                self.data,
-                target,
-                duration,
-                profile=profile,
-                observers=self._observers(viewer),
-                clip=clip,
-                phase=phase,
-            )
+            start, targets = self.plan_move(target, duration, profile=profile, clip=clip)
+            return self._segment("move", phase, start, targets, viewer, observers)
 
-    def hold(self, duration: float, *, viewer: Any = None, phase: str = "hold") -> SegmentResult:
-        """Hold the last commanded target for ``duration`` s of simulated time."""
-        from .motion import hold
-
+    def hold(
+        self,
+        duration: float,
+        *,
+        viewer: Any = None,
+        observers: Sequence[Observer] = (),
+        phase: str = "hold",
+    ) -> SegmentResult:
+        """Hold the last commanded target (the measured pose, before any command) for
+        ``duration`` s of simulated time."""
+        n = steps_for(duration, self.timestep)
         with self.lock:
-            return hold(
-                self.model, self.data, duration, observers=self._observers(viewer), phase=phase
-            )
+            start = self.commanded_array()
+            targets = np.broadcast_to(start, (n, len(start)))
+            return self._segment("hold", phase, start, targets, viewer, observers)
+
+    def _segment(
+        self,
+        kind: str,
+        phase: str,
+        start: np.ndarray,
+        targets: np.ndarray,
+        viewer: Any,
+        observers: Sequence[Observer],
+    ) -> SegmentResult:
+        t0 = self.time
+        trace = self.advance(targets, viewer=viewer, observers=observers, phase=phase)
+        commanded = self.units.from_radians(trace.ctrl)
+        measured = self.units.from_radians(trace.qpos)
+        err = np.abs(commanded - measured).max(axis=0) if len(trace) else np.zeros(len(start))
+        return SegmentResult(
+            phase=phase,
+            kind=kind,
+            start_time=t0,
+            end_time=self.time,
+            steps=len(trace),
+            start=self.units.array_to_pose(start),
+            target=self.units.array_to_pose(commanded[-1] if len(trace) else start),
+            reached=self.pose(),
+            max_tracking_error=self.units.array_to_pose(err),
+            completed=trace.completed,
+            times=trace.time.copy(),
+            commanded=commanded,
+            measured=measured,
+        )
+
+
+def _check_data(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """Raise ModelError if ``data`` was not made for ``model`` (their sizes differ)."""
+    sizes = ("nq", "nv", "nu", "na", "nbody")
+    if any(getattr(data.model, s) != getattr(model, s) for s in sizes):
+        raise ModelError(
+            "the MjData was made for another model (nq/nv/nu/nbody differ); expected "
+            "mujoco.MjData(model) of the same model"
+        )

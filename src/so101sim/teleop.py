@@ -33,15 +33,15 @@ import numpy as np
 
 from .errors import CalibrationError, LeaderError
 from .hardware import Clock, check_fps, clock_for, sleep_until
-from .motion import check_duration
+from .model import default_units
 from .units import (
     DEG_PER_RAD,
     GRIPPER,
     GRIPPER_INDEX,
     JOINT_NAMES,
     LEROBOT_SUFFIX,
-    default_units,
 )
+from .validation import check_duration
 
 log = logging.getLogger(__name__)
 

@@ -39,7 +39,8 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
 
 from .errors import SettingError, TrajectoryLimitError
-from .units import JOINT_NAMES, ArmUnits, default_units
+from .model import default_units
+from .units import JOINT_NAMES, ArmUnits
 
 log = logging.getLogger(__name__)
 

@@ -18,14 +18,13 @@ keys (``"shoulder_pan.pos"``); inside, they are NumPy arrays in :data:`JOINT_NAM
 from __future__ import annotations
 
 import math
-import numbers
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
 from .errors import JointLimitError, JointNameError, JointValueError
+from .validation import is_real
 
 JOINT_NAMES: tuple[str, ...] = (
     "shoulder_pan",
@@ -72,13 +71,22 @@ ZERO_POSE: dict[str, float] = dict.fromkeys(JOINT_NAMES, 0.0)
 """Every joint at 0: body joints mid-range (upper arm up, forearm forward), gripper closed."""
 
 
-def joint_unit(name: str) -> str:
-    """The unit a joint is expressed in: ``"deg"`` or ``"%"`` (the gripper's 0–100)."""
-    return "%" if name == GRIPPER else "deg"
+def unit_symbol(name: str) -> str:
+    """The symbol written after a joint's value: ``"°"`` for body joints, ``""`` for the
+    gripper's 0–100."""
+    return "" if name == GRIPPER else "°"
 
 
-def _fmt(name: str, value: float) -> str:
-    return f"{value:g}" if name == GRIPPER else f"{value:g}°"
+def format_value(name: str, value: float, digits: int | None = None) -> str:
+    """One joint value with its unit: ``"12.5°"`` for a body joint, ``"60"`` for the gripper.
+
+    ``digits=None`` writes the shortest form (``:g``); a number of digits writes that many
+    decimals, with no ``-0.00``.
+    """
+    v = float(value)
+    if digits is None:
+        return f"{v:g}{unit_symbol(name)}"
+    return f"{round(v, digits) + 0.0:.{digits}f}{unit_symbol(name)}"
 
 
 @dataclass(frozen=True)
@@ -156,9 +164,9 @@ class ArmUnits:
             i = int(bad[0])
             n = JOINT_NAMES[i]
             raise JointLimitError(
-                f"{n} = {_fmt(n, values[i])} is outside the joint's limits "
-                f"{_fmt(n, lo[i])}..{_fmt(n, hi[i])}; choose a target inside them, or pass "
-                "clip=True to clip targets to the limits instead"
+                f"{n} = {format_value(n, values[i])} is outside the joint's limits "
+                f"{format_value(n, lo[i])}..{format_value(n, hi[i])}; choose a target inside "
+                "them, or pass clip=True to clip targets to the limits instead"
             )
         return np.clip(values, lo, hi)  # only corrections within the tolerance remain
 
@@ -209,7 +217,7 @@ def normalize_joint_name(key: object) -> str:
 
 def check_number(name: str, value: object) -> float:
     """Return ``value`` as a float if it is a finite real number, else raise JointValueError."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+    if not is_real(value):
         raise JointValueError(
             f"{name} = {value!r} is not a number; expected a finite value in "
             f"{'0..100' if name == GRIPPER else 'degrees'}"
@@ -247,25 +255,6 @@ def parse_pose(pose: Pose, *, partial: bool = False) -> dict[str, float]:
     return out
 
 
-@lru_cache(maxsize=1)
-def default_units() -> ArmUnits:
-    """Units for the shipped model, read from its joint ranges (parsed, not compiled)."""
-    import mujoco
-
-    from .model import model_dir
-
-    spec = mujoco.MjSpec.from_file(str(model_dir() / "so101_new_calib.xml"))
-    ranges = {j.name: np.array(j.range, dtype=float) for j in spec.joints}
-    lower = np.array([ranges[n][0] for n in JOINT_NAMES])
-    upper = np.array([ranges[n][1] for n in JOINT_NAMES])
-    return ArmUnits(lower=lower, upper=upper)
-
-
-def units_for(lower: Iterable[float], upper: Iterable[float]) -> ArmUnits:
-    """Units for a model with these joint limits (radians, :data:`JOINT_NAMES` order)."""
-    return ArmUnits(lower=np.asarray(list(lower), float), upper=np.asarray(list(upper), float))
-
-
 def to_lerobot(pose: Pose) -> dict[str, float]:
     """``{"shoulder_pan": v}`` -> LeRobot's ``{"shoulder_pan.pos": v}``."""
     return {f"{normalize_joint_name(k)}{LEROBOT_SUFFIX}": float(v) for k, v in pose.items()}
@@ -273,9 +262,7 @@ def to_lerobot(pose: Pose) -> dict[str, float]:
 
 def format_pose(pose: Pose, digits: int = 2) -> str:
     """A pose as one readable line: ``shoulder_pan=0.00° ... gripper=0.00``."""
-    parts = []
-    for k, v in pose.items():
-        n = normalize_joint_name(k)
-        v = round(float(v), digits) + 0.0  # no "-0.00"
-        parts.append(f"{n}={v:.{digits}f}{'' if n == GRIPPER else '°'}")
-    return " ".join(parts)
+    return " ".join(
+        f"{normalize_joint_name(k)}={format_value(normalize_joint_name(k), v, digits)}"
+        for k, v in pose.items()
+    )
