@@ -136,3 +136,12 @@ def test_a_command_written_straight_to_ctrl_is_held(md):
     hold_position(m, d, None, 2.0)
     np.testing.assert_allclose(d.ctrl, convert_to_list(ZERO_POSE))
     assert abs(convert_to_dictionary(d.qpos)["shoulder_lift"]) < 1.0
+
+
+def test_convert_to_dictionary_says_what_it_needs():
+    from so101sim.errors import JointValueError
+
+    with pytest.raises(JointValueError, match="at least 6"):
+        convert_to_dictionary([0, 0, 0])
+    with pytest.raises(JointValueError, match="not a list of numbers"):
+        convert_to_dictionary(["a", "b"])

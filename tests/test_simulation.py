@@ -206,11 +206,20 @@ def test_a_target_written_to_ctrl_directly_is_honoured(sim):
 
 
 def test_nan_state_is_reported_even_without_a_mujoco_warning(sim):
-    from so101sim.simulation import _check_divergence
+    import mujoco
 
-    before = [0, 0, 0]
-    with pytest.raises(SimulationDivergedError, match="NaN or inf"):
-        _check_divergence(sim.model, sim.data, before, np.array([[0.0, np.nan, 0, 0, 0, 0]]))
+    from so101sim.simulation import _STATE_SPEC, _check_divergence
+
+    s0 = np.empty(mujoco.mj_stateSize(sim.model, _STATE_SPEC))
+    mujoco.mj_getState(sim.model, sim.data, s0, _STATE_SPEC)
+    states = np.repeat(s0[None], 2, axis=0)
+    states[:, 0] += [0.002, 0.004]
+    states[1, 1 + sim.index.qpos[1]] = np.nan
+    with pytest.raises(SimulationDivergedError, match="NaN or inf") as info:
+        _check_divergence(sim.model, sim.data, states, s0, 1 + sim.index.qpos)
+    assert "t = 0.004 s" in str(info.value)  # the step it happened in
+    assert sim.time == pytest.approx(0.002)  # left at the last good state
+    assert np.isfinite(sim.data.qpos).all()
 
 
 def test_commanded_reads_the_value_commanded(sim):
@@ -225,3 +234,67 @@ def test_step_count_must_be_a_whole_number(sim):
     for bad in (-1, 2.5, True):
         with pytest.raises(SettingError, match="whole number of steps"):
             sim.step(bad)
+
+
+def _unstable_sim() -> Simulation:
+    m = copy.copy(load_model())
+    m.actuator_gainprm[:, 0] = 1e9  # absurd gains: the explicit integrator blows up
+    m.actuator_biasprm[:, 1] = -1e9
+    m.actuator_forcerange[:] = [-1e12, 1e12]
+    return Simulation(m)
+
+
+def test_divergence_is_detected_every_time_and_leaves_the_state_where_it_happened():
+    sim = _unstable_sim()
+    for _ in range(3):  # MuJoCo's reset zeroes its warning counter: each one is still seen
+        t_before = sim.time
+        with pytest.raises(SimulationDivergedError, match="diverged at t = ") as info:
+            sim.move_to(ZERO_POSE, 1.0)
+        assert sim.time >= t_before  # never back at 0 after a reset
+        assert np.isfinite(sim.data.qpos).all() and np.isfinite(sim.data.qvel).all()
+        assert f"{sim.time + sim.timestep:.3f} s" in str(info.value)
+
+
+def test_a_long_hold_keeps_its_summary_but_no_per_step_arrays(sim):
+    from so101sim.simulation import TRACE_AUTO_STEPS
+
+    r = sim.hold(TRACE_AUTO_STEPS * sim.timestep + 1.0)  # over the automatic limit
+    assert r.steps == TRACE_AUTO_STEPS + 500
+    assert r.times.size == 0 and r.commanded.shape == (0, 6) and r.measured.shape == (0, 6)
+    assert r.max_tracking_error["shoulder_lift"] > 0
+    assert r.target == pytest.approx(STARTING_POSE, abs=1e-9)
+    short = sim.hold(2.0)  # short segments keep it, as before
+    assert short.times.size == 1000
+    kept = sim.hold(1.0, trace=False)
+    assert kept.times.size == 0 and kept.steps == 500
+
+
+def test_summary_without_trace_equals_summary_with_it():
+    a, b = Simulation(), Simulation()
+    ra = a.move_to(ZERO_POSE, 2.0, trace=True)
+    rb = b.move_to(ZERO_POSE, 2.0, trace=False)
+    assert ra.max_tracking_error == rb.max_tracking_error  # bit for bit
+    assert ra.target == rb.target and ra.reached == rb.reached
+
+
+def test_huge_durations_and_counts_are_refused_before_anything_is_allocated(sim):
+    from so101sim.errors import DurationError, SettingError
+
+    for bad in (1e9, 1e308, 10**400):
+        with pytest.raises(DurationError, match="at most"):
+            sim.hold(bad)
+        with pytest.raises(DurationError, match="at most 3600 s"):
+            sim.move_to(ZERO_POSE, bad)
+    with pytest.raises(SettingError, match="whole number of steps"):
+        sim.step(10**12)
+    assert sim.time == 0.0
+
+
+def test_data_of_another_model_is_refused():
+    import mujoco
+
+    from so101sim.errors import ModelError
+
+    other = mujoco.MjModel.from_xml_string("<mujoco><worldbody/></mujoco>")
+    with pytest.raises(ModelError, match="another model"):
+        Simulation(load_model(), data=mujoco.MjData(other))

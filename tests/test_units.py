@@ -158,3 +158,15 @@ def test_arm_units_per_degree_of_rotation():
     assert per[:5] == pytest.approx(np.ones(5))
     # the gripper's 100 units span its 110° range
     assert per[5] == pytest.approx(100 / 110, rel=1e-6)
+
+
+def test_zero_d_arrays_are_numbers_and_huge_ints_are_refused():
+    units = default_units()
+    pose = {n: np.float32(0.0) for n in JOINT_NAMES}
+    pose["elbow_flex"] = np.array(12.5)  # 0-d array, as a tensor's .numpy() gives
+    assert units.pose_to_array(pose)[2] == 12.5
+    with pytest.raises(JointValueError, match="too large"):
+        parse_pose({"elbow_flex": 10**400}, partial=True)
+    for bad in (np.array([1.0, 2.0]), np.array(True), "3", None):
+        with pytest.raises(JointValueError, match="not a number"):
+            parse_pose({"elbow_flex": bad}, partial=True)

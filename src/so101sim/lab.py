@@ -35,6 +35,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from .errors import JointValueError
 from .model import default_units
 from .simulation import SegmentResult, Simulation
 from .units import JOINT_NAMES, Pose
@@ -56,7 +57,18 @@ def convert_to_dictionary(qpos: Sequence[float] | np.ndarray) -> dict[str, float
     shipped model's). The handout's ``qpos[5] * 100 / 3.14159`` for the gripper was wrong (see
     the module docs).
     """
-    q = np.asarray(qpos, dtype=float)[: len(JOINT_NAMES)]
+    try:
+        q = np.asarray(qpos, dtype=float).reshape(-1)[: len(JOINT_NAMES)]
+    except (TypeError, ValueError) as exc:
+        raise JointValueError(
+            f"qpos = {qpos!r} is not a list of numbers ({exc}); expected d.qpos, six or more "
+            "joint angles in radians"
+        ) from None
+    if len(q) < len(JOINT_NAMES):
+        raise JointValueError(
+            f"qpos has {len(q)} values; expected at least {len(JOINT_NAMES)} joint angles in "
+            f"radians ({', '.join(JOINT_NAMES)})"
+        )
     units = default_units()
     return units.array_to_pose(units.from_radians(q))
 

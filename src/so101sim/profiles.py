@@ -20,18 +20,22 @@ import numpy as np
 from .errors import SettingError
 from .trajectory import LimitedProfile
 from .units import ArmUnits
-from .validation import check_duration
+from .validation import MAX_DURATION_S, check_duration
 
 log = logging.getLogger(__name__)
+
+MAX_MOVE_DURATION_S = 3600.0
+"""The longest move accepted (an hour): a move's targets are planned whole, 48 bytes a step."""
 
 Profile = Callable[[np.ndarray, np.ndarray, int, float], np.ndarray]
 """``profile(start, target, n_steps, dt) -> (n, 6)`` targets in arm units (n may differ from
 ``n_steps`` if the profile must stretch the move)."""
 
 
-def steps_for(duration: float, timestep: float) -> int:
-    """Physics steps in ``duration`` seconds: ``round(duration / timestep)``, at least 1."""
-    n = round(check_duration(duration) / timestep)
+def steps_for(duration: float, timestep: float, *, maximum: float = MAX_DURATION_S) -> int:
+    """Physics steps in ``duration`` seconds: ``round(duration / timestep)``, at least 1.
+    ``duration`` is checked first (> 0, at most ``maximum`` seconds, a day by default)."""
+    n = round(check_duration(duration, maximum=maximum) / timestep)
     if n == 0:
         log.warning(
             "duration %g s is shorter than half a physics step (%g s); it takes one step",

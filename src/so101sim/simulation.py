@@ -29,7 +29,7 @@ from mujoco import rollout as _rollout
 
 from .errors import ModelError, SimulationDivergedError
 from .model import ArmIndex, arm_index, arm_units, load_model
-from .profiles import Profile, get_profile, plan, steps_for
+from .profiles import MAX_MOVE_DURATION_S, Profile, get_profile, plan, steps_for
 from .units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose
 from .validation import MAX_DURATION_S, check_count, check_range
 
@@ -121,9 +121,10 @@ class Trace:
     ctrl: np.ndarray  # (n, 6)
     qpos: np.ndarray  # (n, 6)
     completed: bool = True
+    steps: int = -1  # steps taken; -1: len(time) (a trace may keep no per-step arrays)
 
     def __len__(self) -> int:
-        return len(self.time)
+        return self.steps if self.steps >= 0 else len(self.time)
 
 
 class Observer:
@@ -181,22 +182,56 @@ class ViewerObserver(Observer):
 
 
 # ---------------------------------------------------------------------------- stepping
+_CHUNK = 4096
+"""Physics steps per block at most: blocks of this size bound the memory a run needs, however
+long it is (the per-step trace aside, which is kept only when asked for)."""
+
+
+def _first_bad_step(states: np.ndarray, t0: float, dt: float, qpos_cols: np.ndarray) -> int | None:
+    """Index of the first step of a block whose state is not a continuation of the run: time
+    that went back (MuJoCo reset the data after a bad acceleration) or a NaN/inf joint angle."""
+    k = len(states)
+    expected = t0 + dt * np.arange(1, k + 1)
+    bad = (states[:, 0] < expected - 0.5 * dt) | ~np.isfinite(states[:, qpos_cols]).all(axis=1)
+    hits = np.flatnonzero(bad)
+    return int(hits[0]) if hits.size else None
+
+
 def _check_divergence(
-    m: mujoco.MjModel, d: mujoco.MjData, before: list[int], qpos: np.ndarray
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    states: np.ndarray,
+    start_state: np.ndarray,
+    qpos_cols: np.ndarray,
 ) -> None:
-    for w, n0 in zip(_DIVERGENCE_WARNINGS, before, strict=True):
-        info = d.warning[w]
-        if info.number > n0:
-            raise SimulationDivergedError(
-                f"the simulation diverged at t = {d.time:.3f} s: MuJoCo warned "
-                f"{mujoco.mjtWarning(w).name} (index {info.lastinfo}) and reset the state; "
-                "expected stable physics: check the model's gains, timestep and targets"
-            )
-    if not np.all(np.isfinite(qpos)):
-        raise SimulationDivergedError(
-            f"the simulation diverged at t = {d.time:.3f} s: the joint angles hold NaN or inf; "
-            "expected finite state: check the model's gains, timestep and targets"
+    """Raise SimulationDivergedError if the block of ``states`` (FULLPHYSICS, one row per step)
+    diverged, after putting ``d`` back to the last good state (the state when it happened)."""
+    warned = [w for w in _DIVERGENCE_WARNINGS if d.warning[w].number > 0]
+    t0, dt = float(start_state[0]), float(m.opt.timestep)
+    i = _first_bad_step(states, t0, dt, qpos_cols)
+    if i is None and not warned:
+        return
+    if i is None:  # warned without a visible jump (MuJoCo reset on the last step)
+        i = len(states) - 1
+    good = states[i - 1] if i > 0 else start_state
+    mujoco.mj_setState(m, d, good, _STATE_SPEC)
+    mujoco.mj_forward(m, d)
+    when = float(good[0]) + dt
+    if warned:
+        w = warned[0]
+        cause = (
+            f"MuJoCo warned {mujoco.mjtWarning(w).name} (index {d.warning[w].lastinfo}) and "
+            "would have reset the state"
         )
+    else:
+        cause = "the joint angles hold NaN or inf"
+    for w in warned:
+        d.warning[w].number = 0
+    raise SimulationDivergedError(
+        f"the simulation diverged at t = {when:.3f} s: {cause}; the state is left as it was "
+        f"at t = {float(good[0]):.3f} s. Expected stable physics: check the model's gains, "
+        "timestep and targets"
+    )
 
 
 _local = threading.local()
@@ -210,19 +245,19 @@ def _runner() -> _rollout.Rollout:
     return r
 
 
-def _step_block(m: mujoco.MjModel, d: mujoco.MjData, ctrl_full: np.ndarray) -> np.ndarray:
-    """Take ``len(ctrl_full)`` steps, applying row i of ``ctrl_full`` (all actuators) during step
-    i; return the state after each step (FULLPHYSICS layout)."""
+def _step_block(
+    m: mujoco.MjModel, d: mujoco.MjData, ctrl_full: np.ndarray, s0: np.ndarray
+) -> np.ndarray:
+    """Take ``len(ctrl_full)`` steps from the state ``s0`` (that of ``d``), applying row i of
+    ``ctrl_full`` (all actuators) during step i; return the state after each step
+    (FULLPHYSICS layout)."""
     k = len(ctrl_full)
-    nstate = mujoco.mj_stateSize(m, _STATE_SPEC)
-    states = np.empty((k, nstate))
+    states = np.empty((k, len(s0)))
     if k >= _ROLLOUT_MIN_STEPS:
-        s0 = np.empty((1, nstate))
-        mujoco.mj_getState(m, d, s0[0], _STATE_SPEC)
         _runner().rollout(
             [m],
             [d],
-            s0,
+            s0[None],
             np.ascontiguousarray(ctrl_full[None]),
             control_spec=mujoco.mjtState.mjSTATE_CTRL.value,
             skip_checks=True,
@@ -241,49 +276,62 @@ def _step_block(m: mujoco.MjModel, d: mujoco.MjData, ctrl_full: np.ndarray) -> n
     return states
 
 
+def _block_size(observers: Sequence[Observer], now: float, dt: float, left: int) -> int:
+    """Steps until the first observer's next call is due (0: due now), at most one chunk."""
+    t_next = min((o.next_time() for o in observers), default=math.inf)
+    if t_next <= now + 1e-12:
+        return 0
+    if math.isinf(t_next):
+        return min(left, _CHUNK)
+    return min(left, _CHUNK, max(1, math.ceil((t_next - now) / dt - 1e-9)))
+
+
 def advance(
     m: mujoco.MjModel,
     d: mujoco.MjData,
     targets: np.ndarray,
     observers: Sequence[Observer] = (),
     phase: str = "",
+    *,
+    keep_trace: bool = True,
 ) -> Trace:
     """Step ``len(targets)`` times, commanding row i of ``targets`` (radians, arm joint order)
-    during step i. Observers are called at the simulated times they ask for.
+    during step i. Observers are called at the simulated times they ask for, and see every
+    step in blocks of at most a few thousand steps.
 
-    Returns the per-step :class:`Trace`; ``completed`` is False if an observer stopped the run.
+    Returns the per-step :class:`Trace` (empty arrays unless ``keep_trace``; its length is the
+    steps taken either way); ``completed`` is False if an observer stopped the run.
 
     Raises:
-        SimulationDivergedError: MuJoCo reported an unstable state, or the state is not finite.
+        SimulationDivergedError: MuJoCo reported an unstable state, or the state is not finite;
+            ``d`` is left in the last good state.
     """
     idx = arm_index(m)
     targets = np.asarray(targets, dtype=float).reshape(-1, len(idx.actuator))
     n = len(targets)
-    ctrl_full = np.repeat(d.ctrl[None], n, axis=0)
-    ctrl_full[:, idx.actuator] = targets
     qpos_cols = 1 + idx.qpos  # FULLPHYSICS state: [time, qpos..., qvel..., ...]
-    times = np.empty(n)
-    qpos = np.empty((n, len(idx.qpos)))
+    kept = n if keep_trace else 0
+    times, qpos = np.empty(kept), np.empty((kept, len(idx.qpos)))
     dt = m.opt.timestep
     done = 0
     completed = True
-    warn_before = [d.warning[w].number for w in _DIVERGENCE_WARNINGS]
+    s0 = np.empty(mujoco.mj_stateSize(m, _STATE_SPEC))
+    for w in _DIVERGENCE_WARNINGS:  # MuJoCo's reset zeroes them too: count from 0 every block
+        d.warning[w].number = 0
     for o in observers:
         o.on_start(m, d)
     while done < n:
-        t_next = min((o.next_time() for o in observers), default=math.inf)
-        if t_next <= d.time + 1e-12:
-            k = 0
-        elif math.isinf(t_next):
-            k = n - done
-        else:
-            k = min(n - done, max(1, math.ceil((t_next - d.time) / dt - 1e-9)))
+        k = _block_size(observers, d.time, dt, n - done)
         if k:
-            states = _step_block(m, d, ctrl_full[done : done + k])
-            times[done : done + k] = states[:, 0]
-            qpos[done : done + k] = states[:, qpos_cols]
-            _check_divergence(m, d, warn_before, qpos[done : done + k])
-            block = Trace(times[done : done + k], targets[done : done + k], qpos[done : done + k])
+            ctrl_full = np.repeat(d.ctrl[None], k, axis=0)
+            ctrl_full[:, idx.actuator] = targets[done : done + k]
+            mujoco.mj_getState(m, d, s0, _STATE_SPEC)
+            states = _step_block(m, d, ctrl_full, s0)
+            _check_divergence(m, d, states, s0, qpos_cols)
+            block = Trace(states[:, 0], targets[done : done + k], states[:, qpos_cols])
+            if keep_trace:
+                times[done : done + k] = block.time
+                qpos[done : done + k] = block.qpos
             done += k
             for o in observers:
                 o.on_steps(block, phase)
@@ -292,7 +340,9 @@ def advance(
                 completed = False
         if not completed:
             break
-    return Trace(times[:done], targets[:done], qpos[:done], completed)
+    if keep_trace:
+        return Trace(times[:done], targets[:done], qpos[:done], completed, done)
+    return Trace(times, targets[:0], qpos, completed, done)
 
 
 # ---------------------------------------------------------------------------- results
@@ -508,14 +558,17 @@ class Simulation:
         viewer: Any = None,
         observers: Sequence[Observer] = (),
         phase: str = "",
+        keep_trace: bool = True,
     ) -> Trace:
         """Step ``len(targets)`` times, commanding row i of ``targets`` (arm units, shape
-        ``(n, 6)``) during step i; every observer sees the run."""
+        ``(n, 6)``) during step i; every observer sees the run. The returned :class:`Trace`
+        holds per-step arrays only with ``keep_trace``."""
         q = self.units.to_radians(np.asarray(targets, dtype=float).reshape(-1, len(JOINT_NAMES)))
         with self.lock:
             if len(q):
                 self._state.commanded = True
-            return advance(self.model, self.data, q, self._observers(viewer, observers), phase)
+            obs = self._observers(viewer, observers)
+            return advance(self.model, self.data, q, obs, phase, keep_trace=keep_trace)
 
     def step(self, n: int = 1, *, viewer: Any = None, observers: Sequence[Observer] = ()) -> Trace:
         """Take ``n`` physics steps holding the current target."""
@@ -543,7 +596,7 @@ class Simulation:
             JointNameError, JointValueError, JointLimitError, DurationError, SettingError.
         """
         goal = self.units.pose_to_array(target, clip=clip)
-        n = steps_for(duration, self.timestep)
+        n = steps_for(duration, self.timestep, maximum=MAX_MOVE_DURATION_S)
         prof = get_profile(profile, self.units)
         start = self.commanded_array()
         return start, plan(start, goal, n, self.timestep, prof)
@@ -558,15 +611,18 @@ class Simulation:
         observers: Sequence[Observer] = (),
         clip: bool = False,
         phase: str = "move",
+        trace: bool | None = None,
     ) -> SegmentResult:
         """Move from the last commanded target to ``target`` in ``duration`` s of simulated time.
 
         Returns a :class:`SegmentResult` (commanded and reached pose, largest tracking error per
-        joint). Nothing moves if the target, duration or profile is invalid.
+        joint; per-step arrays when ``trace`` is True, or None and the move is at most
+        :data:`TRACE_AUTO_STEPS` steps). Nothing moves if the target, duration or profile is
+        invalid.
         """
         with self.lock:
             start, targets = self.plan_move(target, duration, profile=profile, clip=clip)
-            return self._segment("move", phase, start, targets, viewer, observers)
+            return self._segment("move", phase, start, targets, viewer, observers, trace)
 
     def hold(
         self,
@@ -575,14 +631,16 @@ class Simulation:
         viewer: Any = None,
         observers: Sequence[Observer] = (),
         phase: str = "hold",
+        trace: bool | None = None,
     ) -> SegmentResult:
         """Hold the last commanded target (the measured pose, before any command) for
-        ``duration`` s of simulated time."""
+        ``duration`` s of simulated time (per-step arrays in the result as for
+        :meth:`move_to`). Memory stays flat however long the hold, unless the trace is kept."""
         n = steps_for(duration, self.timestep)
         with self.lock:
             start = self.commanded_array()
             targets = np.broadcast_to(start, (n, len(start)))
-            return self._segment("hold", phase, start, targets, viewer, observers)
+            return self._segment("hold", phase, start, targets, viewer, observers, trace)
 
     def _segment(
         self,
@@ -592,27 +650,55 @@ class Simulation:
         targets: np.ndarray,
         viewer: Any,
         observers: Sequence[Observer],
+        trace: bool | None,
     ) -> SegmentResult:
         t0 = self.time
-        trace = self.advance(targets, viewer=viewer, observers=observers, phase=phase)
-        commanded = self.units.from_radians(trace.ctrl)
-        measured = self.units.from_radians(trace.qpos)
-        err = np.abs(commanded - measured).max(axis=0) if len(trace) else np.zeros(len(start))
+        keep = _keep(trace, len(targets))
+        errors = _ErrorTracker(self.units, start)
+        tr = self.advance(
+            targets, viewer=viewer, observers=[*observers, errors], phase=phase, keep_trace=keep
+        )
+        empty = np.empty((0, len(start)))
         return SegmentResult(
             phase=phase,
             kind=kind,
             start_time=t0,
             end_time=self.time,
-            steps=len(trace),
+            steps=len(tr),
             start=self.units.array_to_pose(start),
-            target=self.units.array_to_pose(commanded[-1] if len(trace) else start),
+            target=self.units.array_to_pose(errors.last),
             reached=self.pose(),
-            max_tracking_error=self.units.array_to_pose(err),
-            completed=trace.completed,
-            times=trace.time.copy(),
-            commanded=commanded,
-            measured=measured,
+            max_tracking_error=self.units.array_to_pose(errors.max),
+            completed=tr.completed,
+            times=tr.time.copy(),
+            commanded=self.units.from_radians(tr.ctrl) if keep else empty,
+            measured=self.units.from_radians(tr.qpos) if keep else empty,
         )
+
+
+TRACE_AUTO_STEPS = 60_000
+"""Segments of at most this many steps (two minutes at 2 ms) keep their per-step trace unless
+told otherwise; longer ones keep only their summary, so memory stays flat."""
+
+
+def _keep(trace: bool | None, n: int) -> bool:
+    return n <= TRACE_AUTO_STEPS if trace is None else bool(trace)
+
+
+class _ErrorTracker(Observer):
+    """The largest |commanded - measured| per joint (arm units) and the last commanded target,
+    computed block by block, so a segment needs no per-step arrays for its summary."""
+
+    def __init__(self, units: ArmUnits, start: np.ndarray) -> None:
+        self.units = units
+        self.max = np.zeros(len(start))
+        self.last = np.asarray(start, dtype=float)
+
+    def on_steps(self, trace: Trace, phase: str) -> None:
+        commanded = self.units.from_radians(trace.ctrl)
+        measured = self.units.from_radians(trace.qpos)
+        self.max = np.maximum(self.max, np.abs(commanded - measured).max(axis=0))
+        self.last = commanded[-1]
 
 
 def _check_data(model: mujoco.MjModel, data: mujoco.MjData) -> None:
