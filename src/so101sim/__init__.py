@@ -29,6 +29,7 @@ from .errors import (
     SimulationDivergedError,
     So101SimError,
     TrajectoryLimitError,
+    UnreachableError,
     ViewerError,
 )
 
@@ -129,6 +130,7 @@ __all__ = [
     "So101SimError",
     "Thresholds",
     "TrajectoryLimitError",
+    "UnreachableError",
     "VideoSettings",
     "ViewerError",
     "__version__",

@@ -37,6 +37,11 @@ class DurationError(SettingError):
     """A duration is not a finite number of seconds greater than zero (and at most a day)."""
 
 
+class UnreachableError(So101SimError, ValueError):
+    """A tip position (and orientation) the arm cannot reach within the joint limits; the
+    message gives the closest reachable distance."""
+
+
 class ModelError(So101SimError):
     """A model file does not exist, does not compile, or lacks the SO-101 joints."""
 
