@@ -298,3 +298,55 @@ def test_data_of_another_model_is_refused():
     other = mujoco.MjModel.from_xml_string("<mujoco><worldbody/></mujoco>")
     with pytest.raises(ModelError, match="another model"):
         Simulation(load_model(), data=mujoco.MjData(other))
+
+
+def test_likely_unit_mistakes_are_warned_before_the_run(sim, caplog):
+    import logging
+
+    radians = {
+        "shoulder_pan": 0,
+        "shoulder_lift": 1.57,
+        "elbow_flex": -1.2,
+        "wrist_flex": 0.3,
+        "wrist_roll": 0,
+        "gripper": 0,
+    }
+    with caplog.at_level(logging.WARNING, logger="so101sim"):
+        sim.move_to(radians, 0.1)
+    assert "looks like radians" in caplog.text and "90.0°" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="so101sim"):
+        sim.move_to({**STARTING_POSE, "gripper": 0.5}, 0.1)
+        sim.hold(601.0, trace=False)
+    assert "gripper = 0.5 looks like a fraction" in caplog.text
+    assert "did you mean milliseconds" in caplog.text
+
+
+def test_no_unit_warning_for_the_lab_motion(caplog):
+    import logging
+
+    from so101sim.motion import LAB_MOTION, run_segments
+
+    with caplog.at_level(logging.WARNING, logger="so101sim"):
+        run_segments(Simulation(), LAB_MOTION)
+        Simulation().move_to(
+            {
+                "shoulder_pan": 0,
+                "shoulder_lift": 2,
+                "elbow_flex": 3,
+                "wrist_flex": 0,
+                "wrist_roll": 0,
+                "gripper": 0,
+            },
+            0.5,
+        )
+    assert caplog.text == ""
+
+
+def test_a_viewer_without_sync_is_refused_before_anything_moves(sim):
+    from so101sim.errors import SettingError
+
+    for bad in ("viewer", object(), 3):
+        with pytest.raises(SettingError, match="sync"):
+            sim.move_to(ZERO_POSE, 0.5, viewer=bad)
+    assert sim.time == 0.0

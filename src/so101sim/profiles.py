@@ -45,6 +45,20 @@ def steps_for(duration: float, timestep: float, *, maximum: float = MAX_DURATION
     return max(1, n)
 
 
+LONG_DURATION_S = 600.0
+"""A move or hold longer than this (10 min) gets a warning: likely milliseconds meant."""
+
+
+def duration_warning(duration: float, what: str = "duration") -> str | None:
+    """A sentence if ``duration`` (seconds) is long enough to be a unit mistake, else None."""
+    if duration > LONG_DURATION_S:
+        return (
+            f"{what} = {duration:g} s is over {LONG_DURATION_S / 60:g} minutes of simulated "
+            f"time; did you mean milliseconds ({duration:g} ms = {duration / 1000:g} s)?"
+        )
+    return None
+
+
 def _shape(fn: Callable[[np.ndarray], np.ndarray]) -> Profile:
     def profile(start: np.ndarray, target: np.ndarray, n: int, dt: float) -> np.ndarray:
         s = fn(np.arange(1, n + 1) / n)[:, None]

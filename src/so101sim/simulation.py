@@ -27,10 +27,17 @@ import mujoco
 import numpy as np
 from mujoco import rollout as _rollout
 
-from .errors import ModelError, SimulationDivergedError
+from .errors import ModelError, SettingError, SimulationDivergedError
 from .model import ArmIndex, arm_index, arm_units, load_model
-from .profiles import MAX_MOVE_DURATION_S, Profile, get_profile, plan, steps_for
-from .units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose
+from .profiles import (
+    MAX_MOVE_DURATION_S,
+    Profile,
+    duration_warning,
+    get_profile,
+    plan,
+    steps_for,
+)
+from .units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose, unit_warnings
 from .validation import MAX_DURATION_S, check_count, check_range
 
 log = logging.getLogger(__name__)
@@ -535,10 +542,23 @@ class Simulation:
             self.set_pose(self.initial_pose)
 
     # -- observers
-    def viewer_observer(self, viewer: Any) -> ViewerObserver:
+    def viewer_observer(self, viewer: Any) -> Observer:
         """The one :class:`ViewerObserver` of ``viewer`` for this simulation, so that
         successive moves and holds on the same viewer share one wall-clock timeline (no pause,
-        no catch-up between them)."""
+        no catch-up between them). A viewer that is itself an :class:`Observer` (a recorder
+        standing in for the viewer) is used as it is.
+
+        Raises:
+            SettingError: ``viewer`` has no ``sync()`` and ``is_running()``.
+        """
+        if isinstance(viewer, Observer):
+            return viewer
+        missing = [a for a in ("sync", "is_running") if not callable(getattr(viewer, a, None))]
+        if missing:
+            raise SettingError(
+                f"viewer = {viewer!r} has no {' or '.join(f'{a}()' for a in missing)}; expected "
+                "None (headless), mujoco.viewer.launch_passive(m, d) or so101sim.record(...)"
+            )
         obs = self._state.viewers.get(viewer)
         if obs is None:
             obs = self._state.viewers[viewer] = ViewerObserver(viewer)
@@ -597,6 +617,10 @@ class Simulation:
         """
         goal = self.units.pose_to_array(target, clip=clip)
         n = steps_for(duration, self.timestep, maximum=MAX_MOVE_DURATION_S)
+        for warning in unit_warnings(goal):
+            log.warning("%s", warning)
+        if (w := duration_warning(float(duration), "move duration")) is not None:
+            log.warning("%s", w)
         prof = get_profile(profile, self.units)
         start = self.commanded_array()
         return start, plan(start, goal, n, self.timestep, prof)
@@ -637,6 +661,8 @@ class Simulation:
         ``duration`` s of simulated time (per-step arrays in the result as for
         :meth:`move_to`). Memory stays flat however long the hold, unless the trace is kept."""
         n = steps_for(duration, self.timestep)
+        if (w := duration_warning(float(duration), "hold duration")) is not None:
+            log.warning("%s", w)
         with self.lock:
             start = self.commanded_array()
             targets = np.broadcast_to(start, (n, len(start)))

@@ -268,6 +268,31 @@ def parse_pose(pose: Pose, *, partial: bool = False) -> dict[str, float]:
     return out
 
 
+def unit_warnings(values: np.ndarray) -> list[str]:
+    """Likely unit mistakes in a pose (array in arm units, JOINT_NAMES order), as sentences:
+    body joints that all look like radians (every one within ±π, some fractional and not all
+    near 0, e.g. 1.57), or a gripper between 0 and 1 beside body joints in degrees (a fraction
+    where 0-100 is expected). An empty list when the pose looks like the arm's units."""
+    v = np.asarray(values, dtype=float)
+    body = v[:GRIPPER_INDEX]
+    out = []
+    fractional = np.abs(body - np.round(body)) > 1e-9
+    if np.all(np.abs(body) <= math.pi) and np.any(np.abs(body) >= 0.5) and fractional.any():
+        i = int(np.argmax(np.abs(body)))
+        out.append(
+            f"the target looks like radians ({JOINT_NAMES[i]} = {body[i]:g}, every body joint "
+            f"within ±π); so101sim expects degrees ({body[i]:g} rad = "
+            f"{math.degrees(body[i]):.1f}°)"
+        )
+    g = v[GRIPPER_INDEX]
+    if 0 < g <= 1 and np.any(np.abs(body) > math.pi):
+        out.append(
+            f"gripper = {g:g} looks like a fraction; the gripper is 0 (closed) to 100 (open), "
+            f"so {g:g} is {g:g} % open"
+        )
+    return out
+
+
 def to_lerobot(pose: Pose) -> dict[str, float]:
     """``{"shoulder_pan": v}`` -> LeRobot's ``{"shoulder_pan.pos": v}``."""
     return {f"{normalize_joint_name(k)}{LEROBOT_SUFFIX}": float(v) for k, v in pose.items()}
