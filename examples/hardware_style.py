@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from so101sim.hardware import hold_position, move_to_pose
+from so101sim.robot_helpers import hold_robot, move_robot_to
 from so101sim.units import STARTING_POSE, ZERO_POSE, format_pose
 
 
@@ -51,11 +51,11 @@ def main() -> None:
     robot.connect()
     try:
         print("start  :", format_pose(robot.get_observation()))
-        move_to_pose(robot, ZERO_POSE, 2.0)
-        hold_position(robot, 2.0)
+        move_robot_to(robot, ZERO_POSE, 2.0)
+        hold_robot(robot, 2.0)
         print("zeros  :", format_pose(robot.get_observation()))
-        move_to_pose(robot, STARTING_POSE, 2.0)
-        hold_position(robot, 1.0)
+        move_robot_to(robot, STARTING_POSE, 2.0)
+        hold_robot(robot, 1.0)
         print("back   :", format_pose(robot.get_observation()))
     finally:
         robot.disconnect()

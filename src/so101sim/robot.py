@@ -28,6 +28,11 @@ real gripper (``Max_Torque_Limit`` 500 of 1000, "50% of max torque to avoid burn
 
 **Bad input** (unknown keys, values that are not finite numbers) raises a clear error before
 anything changes: the arm keeps its last valid goal.
+
+The configuration and its checks live in :mod:`so101sim.robot_config`, the action checks and
+safety clamps in :mod:`so101sim.robot_actions`; the names users import are re-exported here.
+The robot drives its :class:`~so101sim.simulation.Simulation` through its methods only, but
+for the viewer and the gripper's force range, which need the MuJoCo model and data.
 """
 
 from __future__ import annotations
@@ -36,175 +41,33 @@ import contextlib
 import copy
 import logging
 import math
-import numbers
 import threading
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from pathlib import Path
 from pprint import pformat
 from typing import Any
 
 import numpy as np
 
-from .errors import (
-    DeviceAlreadyConnectedError,
-    DeviceNotConnectedError,
-    DurationError,
-    JointNameError,
-    JointValueError,
-    RobotConfigError,
-    So101SimError,
-)
-from .hardware import MOTOR_KEYS
-from .model import arm_index, load_model
+from .errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, RobotConfigError
+from .model import load_model
+from .robot_actions import clamp_relative, clip_to_limits, parse_action
+from .robot_config import GRIPPER_TORQUE_FRACTION, MODES, SO101SimFollowerConfig, relative_caps
+from .robot_helpers import MOTOR_KEYS
 from .simulation import Pacer, Simulation
-from .units import (
-    GRIPPER_INDEX,
-    JOINT_NAMES,
-    LEROBOT_SUFFIX,
-    STARTING_POSE,
-    check_number,
-    normalize_joint_name,
-    parse_pose,
-)
+from .units import GRIPPER_INDEX, JOINT_NAMES, LEROBOT_SUFFIX, STARTING_POSE, parse_pose
+from .validation import check_duration
 
 log = logging.getLogger(__name__)
 
-MODES: tuple[str, ...] = ("realtime", "lockstep")
-GRIPPER_TORQUE_FRACTION = 0.5
-"""Share of the actuator's force range the gripper may use: LeRobot's ``configure()`` writes
-``Max_Torque_Limit = 500`` (of 1000) to the real gripper (with ``Protection_Current = 250`` and
-``Overload_Torque = 25``), so the simulated gripper gets 50 % of the model's force range."""
-
 _BLOCK_SECONDS = 0.004  # real-time mode steps the physics in blocks of this much simulated time
 _VIEWER_PERIOD = 1.0 / 60.0  # wall seconds between viewer syncs
-_CLIP_WARN_TOLERANCE = 1e-3  # goals this close to a limit are clipped without a warning
-
-
-def _positive(name: str, value: object, *, allow_zero: bool = False) -> float:
-    ok = isinstance(value, numbers.Real) and not isinstance(value, bool)
-    v = float(value) if ok else math.nan  # type: ignore[arg-type]
-    if not (math.isfinite(v) and (v >= 0 if allow_zero else v > 0)):
-        expected = ">= 0" if allow_zero else "> 0"
-        raise RobotConfigError(
-            f"{name} = {value!r} is invalid; expected a finite number {expected}"
-        )
-    return v
-
-
-def relative_caps(max_relative_target: object) -> np.ndarray | None:
-    """``max_relative_target`` as six caps in :data:`JOINT_NAMES` order (``inf``: uncapped),
-    or None when there is no cap.
-
-    Accepts a positive number (int or float: LeRobot rejects an int, this does not) applying to
-    every joint, or a dict from joint name (``"elbow_flex"`` or ``"elbow_flex.pos"``) to a
-    positive number; joints a dict leaves out are not capped.
-
-    Raises:
-        RobotConfigError: a cap that is not a finite number > 0, or a dict key that is not one
-            of the six joints (the message lists them).
-    """
-    if max_relative_target is None:
-        return None
-    caps = np.full(len(JOINT_NAMES), math.inf)
-    if isinstance(max_relative_target, Mapping):
-        for key, value in max_relative_target.items():
-            try:
-                name = normalize_joint_name(key)
-            except JointNameError:
-                raise RobotConfigError(
-                    f"max_relative_target has an unknown joint {key!r}; valid keys are "
-                    f"{', '.join(JOINT_NAMES)} (or the same with '.pos')"
-                ) from None
-            caps[JOINT_NAMES.index(name)] = _positive(f"max_relative_target[{key!r}]", value)
-        return caps
-    if isinstance(max_relative_target, numbers.Real) and not isinstance(max_relative_target, bool):
-        caps[:] = _positive("max_relative_target", max_relative_target)
-        return caps
-    raise RobotConfigError(
-        f"max_relative_target = {max_relative_target!r} is invalid; expected None, a number > 0 "
-        f"(degrees; 0..100 units for the gripper), or a dict from joint name to such a number"
-    )
-
-
-@dataclass(kw_only=True)
-class SO101SimFollowerConfig:
-    """Configuration of :class:`SO101SimFollower`.
-
-    The first fields are LeRobot's ``SO101FollowerConfig`` fields that mean something here
-    (``port``, the PID coefficients and ``num_read_retries`` do not); the rest are the sim's.
-    """
-
-    id: str | None = None
-    """Name of this arm, as in LeRobot (shown in logs and ``str(robot)``)."""
-    max_relative_target: float | int | dict[str, float] | None = None
-    """Largest step from the present position a goal may ask for: one number for every joint,
-    or a dict per joint (degrees; gripper in 0..100 units). None: no cap."""
-    disable_torque_on_disconnect: bool = True
-    """Accepted for LeRobot compatibility. The sim's physics stops at ``disconnect()``, so the
-    arm neither falls (torque off) nor holds (torque on); it freezes until the next connect."""
-    use_degrees: bool = True
-    """Body joints in degrees. Only True is supported (LeRobot's -100..100 mode is not)."""
-    cameras: dict[str, Any] = field(default_factory=dict)
-    """No cameras are simulated yet: must stay empty."""
-    model: str | Path | None = None
-    """MJCF file to load instead of the shipped ``scene.xml``."""
-    viewer: bool = False
-    """Open MuJoCo's passive viewer at ``connect()`` (needs a display)."""
-    mode: str = "realtime"
-    """``"realtime"``: physics runs in the background at ``speed`` × real time.
-    ``"lockstep"``: simulated time advances only through ``step()`` and the fixed amounts
-    below, deterministically."""
-    initial_pose: dict[str, float] = field(default_factory=lambda: dict(STARTING_POSE))
-    """Pose the arm starts in (joint names or LeRobot keys; joints left out take
-    :data:`~so101sim.units.STARTING_POSE`'s value)."""
-    speed: float = 1.0
-    """Real-time mode: simulated seconds per wall-clock second."""
-    lockstep_action_seconds: float = 0.02
-    """Lockstep mode: simulated seconds each ``send_action`` advances (0.02: a 50 Hz loop)."""
-    lockstep_observation_seconds: float = 0.0
-    """Lockstep mode: simulated seconds each ``get_observation`` advances."""
-    gripper_torque_fraction: float = GRIPPER_TORQUE_FRACTION
-    """Share of the gripper actuator's force range the gripper may use (0 < f <= 1)."""
-
-    def __post_init__(self) -> None:
-        if self.use_degrees is not True:
-            raise RobotConfigError(
-                "use_degrees=False (LeRobot's -100..100 range for the body joints) is not "
-                "supported by the simulated follower; it reports body joints in degrees only: "
-                "set use_degrees=True"
-            )
-        if self.cameras:
-            raise RobotConfigError(
-                f"cameras {sorted(self.cameras)} cannot be simulated yet; expected cameras={{}}"
-            )
-        if self.mode not in MODES:
-            raise RobotConfigError(
-                f"mode = {self.mode!r} is invalid; expected one of {', '.join(MODES)}"
-            )
-        relative_caps(self.max_relative_target)
-        try:
-            parse_pose(self.initial_pose, partial=True)
-        except So101SimError as exc:
-            raise RobotConfigError(f"initial_pose is invalid: {exc}") from None
-        self.speed = _positive("speed", self.speed)
-        self.lockstep_action_seconds = _positive(
-            "lockstep_action_seconds", self.lockstep_action_seconds, allow_zero=True
-        )
-        self.lockstep_observation_seconds = _positive(
-            "lockstep_observation_seconds", self.lockstep_observation_seconds, allow_zero=True
-        )
-        fraction = _positive("gripper_torque_fraction", self.gripper_torque_fraction)
-        if fraction > 1:
-            raise RobotConfigError(
-                f"gripper_torque_fraction = {fraction} is invalid; expected 0 < fraction <= 1"
-            )
-        self.gripper_torque_fraction = fraction
+_CLAMP_MESSAGE = "Relative goal position magnitude had to be clamped to be safe.\n%s"  # LeRobot's
+_CLIP_MESSAGE = "Goal position beyond the joint limits was clipped to the limits.\n%s"
 
 
 class _SimClock:
-    """Simulated time as a :class:`so101sim.hardware.Clock`.
+    """Simulated time as a :class:`so101sim.robot_helpers.Clock`.
 
     Lockstep: ``sleep`` advances the physics. Real time: ``sleep`` waits on the wall clock
     (scaled by ``speed``) while the background thread advances it.
@@ -243,15 +106,12 @@ class SO101SimFollower:
         self.id = self.config.id
         self.calibration: dict[str, Any] = {}
         self._caps = relative_caps(self.config.max_relative_target)
-        # A private copy: configure() changes the gripper's force range on it.
-        model = copy.copy(load_model(self.config.model))
-        self._index = arm_index(model)
-        self._gripper_forcerange = model.actuator_forcerange[
-            self._index.actuator[GRIPPER_INDEX]
-        ].copy()
         pose = dict(STARTING_POSE)
         pose.update(parse_pose(self.config.initial_pose, partial=True))
-        self._sim = Simulation(model, initial_pose=pose)
+        # A private copy of the model: configure() changes the gripper's force range on it.
+        self._sim = Simulation(copy.copy(load_model(self.config.model)), initial_pose=pose)
+        self._gripper = int(self._sim.index.actuator[GRIPPER_INDEX])
+        self._gripper_forcerange = self._sim.model.actuator_forcerange[self._gripper].copy()
         self._lock = self._sim.lock
         self._connected = False
         self._stop = threading.Event()
@@ -336,9 +196,8 @@ class SO101SimFollower:
         """Bound the gripper's effort as LeRobot's ``configure()`` bounds the real gripper's
         torque (``Max_Torque_Limit`` 500 of 1000): the gripper actuator gets
         ``gripper_torque_fraction`` (50 %) of the model's force range."""
-        g = self._index.actuator[GRIPPER_INDEX]
-        with self._lock:
-            self._sim.model.actuator_forcerange[g] = (
+        with self._lock:  # the force range is in the model: no Simulation method sets it
+            self._sim.model.actuator_forcerange[self._gripper] = (
                 self._gripper_forcerange * self.config.gripper_torque_fraction
             )
 
@@ -384,8 +243,12 @@ class SO101SimFollower:
             names = list(goals)
             idx = [JOINT_NAMES.index(n) for n in names]
             wanted = np.array([goals[n] for n in names])
-            safe = self._clamp_relative(names, wanted, present[idx])
-            sent = self._clip_to_limits(names, safe, idx)
+            safe, clamped = clamp_relative(names, wanted, present[idx], self._caps)
+            if clamped:
+                log.warning(_CLAMP_MESSAGE, pformat(clamped, indent=4))
+            sent, clipped = clip_to_limits(names, safe, self._sim.units.limits)
+            if clipped:
+                log.warning(_CLIP_MESSAGE, pformat(clipped, indent=4))
             full[idx] = sent
             self._sim.command_array(full, check=False)
             if self.config.mode == "lockstep" and self.config.lockstep_action_seconds:
@@ -399,9 +262,7 @@ class SO101SimFollower:
             DeviceNotConnectedError: not connected.
         """
         if not self._connected:
-            raise DeviceNotConnectedError(
-                f"{self.__class__.__name__} is not connected. Run `.connect()` first."
-            )
+            raise self._not_connected()
         self._stop.set()
         if self._thread is not None:
             self._thread.join()
@@ -418,11 +279,11 @@ class SO101SimFollower:
     def time(self) -> float:
         """Simulated time in seconds."""
         with self._lock:
-            return float(self._sim.data.time)
+            return self._sim.time
 
     @property
     def clock(self) -> _SimClock:
-        """This arm's clock (simulated time) for :mod:`so101sim.hardware`'s helpers."""
+        """This arm's clock (simulated time) for :mod:`so101sim.robot_helpers`."""
         return self._clock
 
     @property
@@ -462,61 +323,22 @@ class SO101SimFollower:
                 "step() advances simulated time only in lockstep mode; in real-time mode the "
                 "physics runs on its own: wait with time.sleep instead"
             )
-        if isinstance(seconds, bool) or not isinstance(seconds, numbers.Real):
-            raise DurationError(f"seconds = {seconds!r} is not a number; expected seconds >= 0")
-        s = float(seconds)
-        if not (math.isfinite(s) and s >= 0):
-            raise DurationError(f"seconds = {s} is invalid; expected a finite number >= 0")
+        s = check_duration(seconds, "seconds", allow_zero=True)
         with self._lock:
             self._advance(s)
-            return float(self._sim.data.time)
+            return self._sim.time
 
     # ------------------------------------------------------------------ internals
+    def _not_connected(self) -> DeviceNotConnectedError:
+        return DeviceNotConnectedError(
+            f"{self.__class__.__name__} is not connected. Run `.connect()` first."
+        )
+
     def _check_connected(self) -> None:
         if not self._connected:
-            raise DeviceNotConnectedError(
-                f"{self.__class__.__name__} is not connected. Run `.connect()` first."
-            )
+            raise self._not_connected()
         if self._error is not None:
             raise self._error
-
-    def _clamp_relative(
-        self, names: list[str], goal: np.ndarray, present: np.ndarray
-    ) -> np.ndarray:
-        if self._caps is None:
-            return goal
-        cap = self._caps[[JOINT_NAMES.index(n) for n in names]]
-        safe = present + np.clip(goal - present, -cap, cap)
-        warnings = {
-            n: {"original goal_pos": float(g), "safe goal_pos": float(s)}
-            for n, g, s in zip(names, goal, safe, strict=True)
-            if abs(s - g) > 1e-4
-        }
-        if warnings:
-            log.warning(
-                "Relative goal position magnitude had to be clamped to be safe.\n%s",
-                pformat(warnings, indent=4),
-            )
-        return safe
-
-    def _clip_to_limits(self, names: list[str], goal: np.ndarray, idx: list[int]) -> np.ndarray:
-        lo, hi = self._sim.units.limits
-        clipped = np.clip(goal, lo[idx], hi[idx])
-        warnings = {
-            n: {
-                "original goal_pos": float(g),
-                "clipped goal_pos": float(c),
-                "limits": (float(lo[i]), float(hi[i])),
-            }
-            for n, g, c, i in zip(names, goal, clipped, idx, strict=True)
-            if abs(c - g) > _CLIP_WARN_TOLERANCE
-        }
-        if warnings:
-            log.warning(
-                "Goal position beyond the joint limits was clipped to the limits.\n%s",
-                pformat(warnings, indent=4),
-            )
-        return clipped
 
     def _advance(self, seconds: float) -> None:
         """Step ``seconds`` of simulated time holding the goals (lock held by the caller)."""
@@ -541,6 +363,7 @@ class SO101SimFollower:
 
         # open_viewer closes the window and waits for its render thread when the stack closes
         stack = contextlib.ExitStack()
+        # the viewer draws the live MuJoCo model and data: no Simulation method stands for them
         self._viewer = stack.enter_context(open_viewer(self._sim.model, self._sim.data))
         self._viewer_stack = stack
         self._last_sync = -math.inf
@@ -548,11 +371,11 @@ class SO101SimFollower:
     def _run_physics(self) -> None:
         """The real-time physics thread: step a block, then sleep until the next block's end
         is due on the wall clock (absolute deadlines, no drift)."""
-        m, d = self._sim.model, self._sim.data
-        block = max(1, round(_BLOCK_SECONDS / m.opt.timestep)) * m.opt.timestep
+        dt = self._sim.timestep
+        block = max(1, round(_BLOCK_SECONDS / dt)) * dt
         pacer = Pacer(self.config.speed, sleep=self._stop.wait)
         with self._lock:
-            t = float(d.time)
+            t = self._sim.time
         pacer.wait(t)
         try:
             while not self._stop.is_set():
@@ -561,42 +384,12 @@ class SO101SimFollower:
                     break
                 with self._lock:
                     self._advance(block)
-                    t = float(d.time)
+                    t = self._sim.time
         except Exception as exc:  # surfaced by the next call from the user's thread
             self._error = exc
             log.error("%s: the physics thread stopped: %s", self, exc)
         if pacer.lag_events:
             log.debug("%s: physics fell behind real time %d times", self, pacer.lag_events)
-
-
-def parse_action(action: object) -> dict[str, float]:
-    """Validate a LeRobot action: ``{"<joint>.pos": finite number}`` for some of the six joints.
-
-    Returns ``{joint name: value}``. Raises before anything changes:
-
-    Raises:
-        JointNameError: not a dict, or a key that is not one of the six ``"<joint>.pos"`` keys
-            (the message lists them).
-        JointValueError: a value that is not a finite real number.
-    """
-    if not isinstance(action, Mapping):
-        raise JointNameError(
-            f"an action must be a dict keyed by {', '.join(MOTOR_KEYS)}, got "
-            f"{type(action).__name__}"
-        )
-    out: dict[str, float] = {}
-    for key, value in action.items():
-        name = key[: -len(LEROBOT_SUFFIX)] if isinstance(key, str) else None
-        if not (isinstance(key, str) and key.endswith(LEROBOT_SUFFIX) and name in JOINT_NAMES):
-            raise JointNameError(
-                f"unknown action key {key!r}; valid keys are {', '.join(MOTOR_KEYS)} "
-                "(the robot's action_features)"
-            )
-        try:
-            out[name] = check_number(name, value)
-        except JointValueError as exc:
-            raise JointValueError(f"action {key!r}: {exc}") from None
-    return out
 
 
 __all__ = [

@@ -32,8 +32,8 @@ from typing import Any, Protocol
 import numpy as np
 
 from .errors import CalibrationError, LeaderError
-from .hardware import Clock, check_fps, clock_for, sleep_until
 from .model import default_units
+from .robot_helpers import Clock, check_fps, clock_for, sleep_until
 from .units import (
     DEG_PER_RAD,
     GRIPPER,
@@ -41,7 +41,7 @@ from .units import (
     JOINT_NAMES,
     LEROBOT_SUFFIX,
 )
-from .validation import check_duration
+from .validation import check_count, check_duration
 
 log = logging.getLogger(__name__)
 
@@ -55,6 +55,14 @@ HOMING_OFFSET = (31, 2)
 DEFAULT_BAUDRATE = 1_000_000
 DEFAULT_FPS = 60.0  # LeRobot's teleoperate default
 LEADER_NAME = "so_leader"  # LeRobot's class name for the SO-101 leader (calibration folder)
+CALIBRATION_FIELDS: dict[str, tuple[int, int]] = {
+    "id": (0, 253),  # Feetech ids (254 is the broadcast id)
+    "drive_mode": (0, 1),
+    "homing_offset": (-2047, 2047),  # 11 bits and a sign bit in the servo
+    "range_min": (0, MAX_TICK),
+    "range_max": (0, MAX_TICK),
+}
+"""Each field of a motor's calibration, with the values the servo can hold."""
 
 
 @dataclass(frozen=True)
@@ -83,24 +91,15 @@ def default_calibration() -> dict[str, MotorCalibration]:
     return out
 
 
-def _int_field(motor: str, key: str, value: object) -> int:
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise CalibrationError(
-            f"calibration of {motor!r}: {key} = {value!r} is not an integer; expected the "
-            "integer LeRobot writes (servo ticks)"
-        )
-    return value
-
-
 def parse_calibration(data: object) -> dict[str, MotorCalibration]:
     """Validate LeRobot's calibration dict ``{motor: {id, drive_mode, homing_offset,
     range_min, range_max}}`` for the six SO-101 motors.
 
     Raises:
-        CalibrationError: a motor missing or unknown, a field missing or not an integer, or
-            ``range_min >= range_max`` (LeRobot refuses equal ends too).
+        CalibrationError: a motor missing or unknown, a field missing, not an integer or out
+            of what the servo holds (:data:`CALIBRATION_FIELDS`), or ``range_min >=
+            range_max`` (LeRobot refuses equal ends too).
     """
-    fields = ("id", "drive_mode", "homing_offset", "range_min", "range_max")
     if not isinstance(data, Mapping):
         raise CalibrationError(
             f"a calibration must be a JSON object keyed by motor name ({', '.join(JOINT_NAMES)})"
@@ -112,22 +111,33 @@ def parse_calibration(data: object) -> dict[str, MotorCalibration]:
             f"calibration motors do not match the SO-101's: unknown {unknown or 'none'}, "
             f"missing {missing or 'none'}; expected exactly {', '.join(JOINT_NAMES)}"
         )
-    out: dict[str, MotorCalibration] = {}
-    for name in JOINT_NAMES:
-        entry = data[name]
-        if not isinstance(entry, Mapping) or any(f not in entry for f in fields):
-            raise CalibrationError(
-                f"calibration of {name!r} must hold the integers {', '.join(fields)}"
-            )
-        values = {f: _int_field(name, f, entry[f]) for f in fields}
-        cal = MotorCalibration(**values)
-        if not 0 <= cal.range_min < cal.range_max <= MAX_TICK:
-            raise CalibrationError(
-                f"calibration of {name!r}: range_min = {cal.range_min}, range_max = "
-                f"{cal.range_max}; expected 0 <= range_min < range_max <= {MAX_TICK}"
-            )
-        out[name] = cal
-    return out
+    return {name: _parse_motor(name, data[name]) for name in JOINT_NAMES}
+
+
+def _parse_motor(name: str, entry: object) -> MotorCalibration:
+    """One motor's entry of a calibration dict, checked."""
+    if not isinstance(entry, Mapping) or any(f not in entry for f in CALIBRATION_FIELDS):
+        raise CalibrationError(
+            f"calibration of {name!r} must hold the integers {', '.join(CALIBRATION_FIELDS)}"
+        )
+    values = {
+        f: check_count(
+            entry[f],
+            f"calibration of {name!r}: {f}",
+            minimum=lo,
+            maximum=hi,
+            expected=f"an integer from {lo} to {hi}, as LeRobot writes it",
+            error=CalibrationError,
+        )
+        for f, (lo, hi) in CALIBRATION_FIELDS.items()
+    }
+    cal = MotorCalibration(**values)
+    if not cal.range_min < cal.range_max:
+        raise CalibrationError(
+            f"calibration of {name!r}: range_min = {cal.range_min}, range_max = "
+            f"{cal.range_max}; expected 0 <= range_min < range_max <= {MAX_TICK}"
+        )
+    return cal
 
 
 def load_calibration(path: str | Path) -> dict[str, MotorCalibration]:
@@ -300,6 +310,37 @@ def _import_sdk() -> Any:
     return scservo_sdk
 
 
+def _leader_action(
+    raw: Mapping[str, int],
+    calibration: Mapping[str, MotorCalibration],
+    limits: tuple[np.ndarray, np.ndarray],
+) -> dict[str, float]:
+    """The leader's raw positions as a follower action, clipped to ``limits`` (quietly: at
+    debug level)."""
+    pose = ticks_to_pose(raw, calibration)
+    values = np.array([pose[n] for n in JOINT_NAMES])
+    clipped = np.clip(values, *limits)
+    if np.any(clipped != values):
+        log.debug("leader beyond the follower's limits; clipped %s", values)
+    return {f"{n}{LEROBOT_SUFFIX}": float(clipped[i]) for i, n in enumerate(JOINT_NAMES)}
+
+
+def _finished(
+    elapsed: float,
+    ticks: int,
+    duration: float | None,
+    max_ticks: int | None,
+    should_stop: Callable[[], bool] | None,
+) -> bool:
+    """Whether teleoperation stops after this tick (``should_stop`` is asked last, and only
+    when the other limits have not stopped it)."""
+    return (
+        (duration is not None and elapsed >= duration - 1e-9)
+        or (max_ticks is not None and ticks >= max_ticks)
+        or (should_stop is not None and bool(should_stop()))
+    )
+
+
 @dataclass(frozen=True)
 class TeleopResult:
     """How a teleoperation session went."""
@@ -329,13 +370,18 @@ def teleoperate(
     debug level), so the follower does not warn 60 times a second. Stops after ``duration``
     seconds, ``max_ticks`` ticks, or when ``should_stop()`` is true; otherwise runs until
     interrupted (Ctrl-C).
+
+    Raises (before anything is read or sent): RateError for a bad ``fps``, DurationError for
+    a bad ``duration``, SettingError for a ``max_ticks`` that is not a whole number >= 0.
     """
     fps = check_fps(fps)
     if duration is not None:
         duration = check_duration(duration)
+    if max_ticks is not None:
+        max_ticks = check_count(max_ticks, "max_ticks")
     calibration = calibration if calibration is not None else default_calibration()
     clock = clock if clock is not None else clock_for(robot)
-    lo, hi = default_units().limits
+    limits = default_units().limits
     period = 1.0 / fps
     t0 = clock.now()
     ticks = late = 0
@@ -343,23 +389,13 @@ def teleoperate(
     while True:
         tick_start = clock.now()
         robot.get_observation()
-        pose = ticks_to_pose(leader.read_positions(), calibration)
-        values = np.array([pose[n] for n in JOINT_NAMES])
-        clipped = np.clip(values, lo, hi)
-        if np.any(clipped != values):
-            log.debug("leader beyond the follower's limits; clipped %s", values)
-        action = {f"{n}{LEROBOT_SUFFIX}": float(clipped[i]) for i, n in enumerate(JOINT_NAMES)}
+        action = _leader_action(leader.read_positions(), calibration, limits)
         robot.send_action(action)
         ticks += 1
         if clock.now() - tick_start > period:
             late += 1
         sleep_until(clock, t0 + ticks * period)
-        elapsed = clock.now() - t0
-        if duration is not None and elapsed >= duration - 1e-9:
-            break
-        if max_ticks is not None and ticks >= max_ticks:
-            break
-        if should_stop is not None and should_stop():
+        if _finished(clock.now() - t0, ticks, duration, max_ticks, should_stop):
             break
     if late:
         log.warning(

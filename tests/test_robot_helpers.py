@@ -1,4 +1,4 @@
-"""Hardware-style helpers written once against LeRobot's robot interface."""
+"""Helpers written once against LeRobot's robot interface (so101sim.robot_helpers)."""
 
 from __future__ import annotations
 
@@ -9,18 +9,18 @@ import pytest
 from fakes import FakeClock
 
 from so101sim.errors import DurationError, JointNameError, JointValueError, RateError
-from so101sim.hardware import (
+from so101sim.robot import SO101SimFollower, SO101SimFollowerConfig
+from so101sim.robot_helpers import (
     MOTOR_KEYS,
     Clock,
     WallClock,
     check_fps,
     clock_for,
-    hold_position,
-    move_to_pose,
+    hold_robot,
+    move_robot_to,
     sleep_until,
     wait_seconds,
 )
-from so101sim.robot import SO101SimFollower, SO101SimFollowerConfig
 from so101sim.units import STARTING_POSE, ZERO_POSE
 
 
@@ -56,7 +56,7 @@ def test_clock_for_picks_the_robots_clock_or_the_wall_clock():
 def test_move_sends_a_straight_line_at_fps_and_ends_exactly_at_the_target():
     clock = FakeClock()
     arm = FakeArm(clock)
-    rec = move_to_pose(arm, {"shoulder_pan": 30.0, "gripper.pos": 50}, 0.5, fps=20, clock=clock)
+    rec = move_robot_to(arm, {"shoulder_pan": 30.0, "gripper.pos": 50}, 0.5, fps=20, clock=clock)
     assert rec.actions_sent == len(arm.sent) == 10
     assert all(set(a) == {"shoulder_pan.pos", "gripper.pos"} for a in arm.sent)
     pan = [a["shoulder_pan.pos"] for a in arm.sent]
@@ -71,11 +71,11 @@ def test_move_sends_a_straight_line_at_fps_and_ends_exactly_at_the_target():
 def test_waits_go_to_absolute_deadlines_whatever_the_calls_cost():
     clock = FakeClock()
     arm = FakeArm(clock, call_cost=0.004)
-    rec = move_to_pose(arm, ZERO_POSE, 1.0, fps=50, clock=clock)
+    rec = move_robot_to(arm, ZERO_POSE, 1.0, fps=50, clock=clock)
     # 50 ticks of 20 ms: each tick's calls cost 8 ms, the sleeps make up the rest exactly
     assert rec.times - rec.times[0] == pytest.approx(np.arange(50) * 0.02 + np.r_[0, [0.004] * 49])
     assert clock.sleeps == pytest.approx([0.02 - 0.004] + [0.02 - 0.008] * 49)
-    hold = hold_position(arm, 0.2, fps=50, clock=clock)
+    hold = hold_robot(arm, 0.2, fps=50, clock=clock)
     assert hold.actions_sent == 0 and hold.target == {}
     assert len(arm.sent) == 50  # the hold sent nothing
     assert hold.end_time - hold.start_time == pytest.approx(0.2 + 0.004)
@@ -85,17 +85,17 @@ def test_bad_input_raises_before_anything_is_sent():
     clock = FakeClock()
     arm = FakeArm(clock)
     with pytest.raises(JointNameError):
-        move_to_pose(arm, {"elbow": 0.0}, 1.0, clock=clock)
+        move_robot_to(arm, {"elbow": 0.0}, 1.0, clock=clock)
     with pytest.raises(JointValueError):
-        move_to_pose(arm, {"elbow_flex": math.nan}, 1.0, clock=clock)
+        move_robot_to(arm, {"elbow_flex": math.nan}, 1.0, clock=clock)
     for bad in (0, -1.0, math.inf, "2"):
         with pytest.raises(DurationError):
-            move_to_pose(arm, ZERO_POSE, bad, clock=clock)
+            move_robot_to(arm, ZERO_POSE, bad, clock=clock)
         with pytest.raises(DurationError):
-            hold_position(arm, bad, clock=clock)
+            hold_robot(arm, bad, clock=clock)
     for bad in (0, -5, math.nan, True, "50"):
         with pytest.raises(RateError):
-            move_to_pose(arm, ZERO_POSE, 1.0, fps=bad, clock=clock)
+            move_robot_to(arm, ZERO_POSE, 1.0, fps=bad, clock=clock)
     assert arm.sent == []
     assert clock.sleeps == []
     assert check_fps(np.float32(30)) == 30.0
@@ -118,10 +118,10 @@ def test_sleep_until_and_wait_seconds():
 
 def lab_motion(robot):
     """The lab's motion, written as for the real arm."""
-    a = move_to_pose(robot, ZERO_POSE, 1.0)
-    b = hold_position(robot, 0.5)
-    c = move_to_pose(robot, STARTING_POSE, 1.0)
-    d = hold_position(robot, 0.3)
+    a = move_robot_to(robot, ZERO_POSE, 1.0)
+    b = hold_robot(robot, 0.5)
+    c = move_robot_to(robot, STARTING_POSE, 1.0)
+    d = hold_robot(robot, 0.3)
     return a, b, c, d
 
 
@@ -153,8 +153,8 @@ def test_same_helpers_drive_the_realtime_sim():
     robot = SO101SimFollower(SO101SimFollowerConfig(initial_pose=ZERO_POSE))
     with robot:
         target = {"shoulder_pan": 20.0, "wrist_flex": -15.0, "gripper": 30.0}
-        rec = move_to_pose(robot, target, 0.4)
-        hold_position(robot, 0.3)
+        rec = move_robot_to(robot, target, 0.4)
+        hold_robot(robot, 0.3)
         obs = robot.get_observation()
     assert rec.actions_sent == 20
     for name, value in target.items():

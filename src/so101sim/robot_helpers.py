@@ -1,8 +1,8 @@
-"""Hardware-style helpers: the lab's move and hold, written once against LeRobot's robot interface.
+"""Move and hold helpers for any robot with LeRobot's interface: the lab's motion, written once.
 
-These helpers only call ``robot.get_observation()`` and ``robot.send_action(...)`` and wait
-between calls, exactly as code written for the real SO-101 through LeRobot does. So the same
-function drives:
+:func:`move_robot_to` and :func:`hold_robot` touch no hardware themselves: they only call
+``robot.get_observation()`` and ``robot.send_action(...)`` and wait between calls, exactly as
+code written for the real SO-101 through LeRobot does. So the same function drives:
 
 * the real arm (LeRobot's ``SO101Follower``): waiting is ``time.sleep``;
 * the simulated arm in real-time mode (:class:`so101sim.robot.SO101SimFollower`): the physics
@@ -19,7 +19,6 @@ back to the wall clock for anything else (the real arm). Waits go to absolute de
 from __future__ import annotations
 
 import logging
-import math
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -27,9 +26,9 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from .errors import DurationError, RateError
+from .errors import RateError
 from .units import JOINT_NAMES, LEROBOT_SUFFIX, Pose, parse_pose
-from .validation import check_duration
+from .validation import MAX_RATE_HZ, check_duration, check_range
 
 log = logging.getLogger(__name__)
 
@@ -112,15 +111,20 @@ def _motors(obs: Mapping[str, Any]) -> dict[str, float]:
 
 
 def check_fps(fps: object) -> float:
-    """Return ``fps`` as a float if it is a finite number > 0, else raise RateError."""
-    ok = isinstance(fps, int | float | np.number) and not isinstance(fps, bool)
-    value = float(fps) if ok else math.nan  # type: ignore[arg-type]
-    if not (math.isfinite(value) and value > 0):
-        raise RateError(f"fps = {fps!r} is invalid; expected a finite number per second > 0")
-    return value
+    """Return ``fps`` as a float if it is a finite number > 0 and at most
+    :data:`~so101sim.validation.MAX_RATE_HZ`, else raise RateError."""
+    return check_range(
+        fps,
+        "fps",
+        low=0.0,
+        high=MAX_RATE_HZ,
+        low_open=True,
+        expected=f"a finite number per second > 0, at most {MAX_RATE_HZ:g}",
+        error=RateError,
+    )
 
 
-def move_to_pose(
+def move_robot_to(
     robot: Any,
     desired: Pose,
     duration: float,
@@ -175,7 +179,7 @@ def move_to_pose(
     )
 
 
-def hold_position(
+def hold_robot(
     robot: Any,
     duration: float,
     *,
@@ -216,9 +220,7 @@ def hold_position(
 
 def wait_seconds(robot: Any, seconds: float) -> None:
     """Let ``seconds`` pass on ``robot``'s clock (``time.sleep`` on the real arm)."""
-    if not (isinstance(seconds, int | float) and math.isfinite(seconds) and seconds >= 0):
-        raise DurationError(f"seconds = {seconds!r} is invalid; expected a finite number >= 0")
-    clock_for(robot).sleep(float(seconds))
+    clock_for(robot).sleep(check_duration(seconds, "seconds", allow_zero=True))
 
 
 __all__ = [
@@ -229,8 +231,8 @@ __all__ = [
     "WallClock",
     "check_fps",
     "clock_for",
-    "hold_position",
-    "move_to_pose",
+    "hold_robot",
+    "move_robot_to",
     "sleep_until",
     "wait_seconds",
 ]

@@ -1,0 +1,103 @@
+"""What the simulated follower does with a LeRobot action before the arm sees it.
+
+:func:`parse_action` checks the keys and values (bad input raises, and nothing changes);
+:func:`clamp_relative` applies ``max_relative_target`` as LeRobot's
+``ensure_safe_goal_position`` does; :func:`clip_to_limits` clips goals to the joint limits, as
+the servos' position limits do on the real arm. The two safety steps return what they changed,
+in LeRobot's warning layout, for the robot to log.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from .errors import JointNameError, JointValueError
+from .robot_helpers import MOTOR_KEYS
+from .units import JOINT_NAMES, LEROBOT_SUFFIX, check_number
+
+CLAMP_TOLERANCE = 1e-4
+"""Goals moved by at most this much by ``max_relative_target`` are not reported (LeRobot's)."""
+CLIP_WARN_TOLERANCE = 1e-3
+"""Goals this close to a limit are clipped without being reported."""
+
+Changes = dict[str, dict[str, object]]
+"""Per joint name, what a safety step changed (LeRobot's warning layout)."""
+
+
+def parse_action(action: object) -> dict[str, float]:
+    """Validate a LeRobot action: ``{"<joint>.pos": finite number}`` for some of the six joints.
+
+    Returns ``{joint name: value}``. Raises before anything changes:
+
+    Raises:
+        JointNameError: not a dict, or a key that is not one of the six ``"<joint>.pos"`` keys
+            (the message lists them).
+        JointValueError: a value that is not a finite real number.
+    """
+    if not isinstance(action, Mapping):
+        raise JointNameError(
+            f"an action must be a dict keyed by {', '.join(MOTOR_KEYS)}, got "
+            f"{type(action).__name__}"
+        )
+    return dict(_action_item(key, value) for key, value in action.items())
+
+
+def _action_item(key: object, value: object) -> tuple[str, float]:
+    """``("<joint>.pos", value)`` -> ``(joint name, value as a float)``, checked."""
+    if not (isinstance(key, str) and key in MOTOR_KEYS):
+        raise JointNameError(
+            f"unknown action key {key!r}; valid keys are {', '.join(MOTOR_KEYS)} "
+            "(the robot's action_features)"
+        )
+    name = key[: -len(LEROBOT_SUFFIX)]
+    try:
+        return name, check_number(name, value)
+    except JointValueError as exc:
+        raise JointValueError(f"action {key!r}: {exc}") from None
+
+
+def clamp_relative(
+    names: Sequence[str], goal: np.ndarray, present: np.ndarray, caps: np.ndarray | None
+) -> tuple[np.ndarray, Changes]:
+    """Clamp each goal to ``present ± cap`` (``caps`` from
+    :func:`~so101sim.robot_config.relative_caps`, None: no cap).
+
+    ``names``, ``goal`` and ``present`` list the same joints. Returns the safe goals and, per
+    joint moved by more than :data:`CLAMP_TOLERANCE`, its original and safe goal.
+    """
+    if caps is None:
+        return goal, {}
+    cap = caps[[JOINT_NAMES.index(n) for n in names]]
+    safe = present + np.clip(goal - present, -cap, cap)
+    changes: Changes = {
+        n: {"original goal_pos": float(g), "safe goal_pos": float(s)}
+        for n, g, s in zip(names, goal, safe, strict=True)
+        if abs(s - g) > CLAMP_TOLERANCE
+    }
+    return safe, changes
+
+
+def clip_to_limits(
+    names: Sequence[str], goal: np.ndarray, limits: tuple[np.ndarray, np.ndarray]
+) -> tuple[np.ndarray, Changes]:
+    """Clip each goal to its joint's ``limits`` (``(lower, upper)``, six values each, arm
+    units). Returns the clipped goals and, per joint moved by more than
+    :data:`CLIP_WARN_TOLERANCE`, its original and clipped goal and the limits."""
+    lo, hi = limits
+    idx = [JOINT_NAMES.index(n) for n in names]
+    clipped = np.clip(goal, lo[idx], hi[idx])
+    changes: Changes = {
+        n: {
+            "original goal_pos": float(g),
+            "clipped goal_pos": float(c),
+            "limits": (float(lo[i]), float(hi[i])),
+        }
+        for n, g, c, i in zip(names, goal, clipped, idx, strict=True)
+        if abs(c - g) > CLIP_WARN_TOLERANCE
+    }
+    return clipped, changes
+
+
+__all__ = ["clamp_relative", "clip_to_limits", "parse_action"]
