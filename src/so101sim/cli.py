@@ -383,7 +383,7 @@ def _add_teleop_parser(sub: argparse._SubParsersAction) -> None:
 
 def cmd_teleop(args: argparse.Namespace) -> int:
     from . import teleop
-    from .hardware import check_fps
+    from .robot_helpers import check_fps
     from .robot import SO101SimFollower, SO101SimFollowerConfig
     from .validation import check_duration
 
