@@ -15,7 +15,13 @@ from so101sim.model import default_units, load_model
 from so101sim.motion import LAB_MOTION, Hold, Move, run_motion
 from so101sim.motionfile import lab_motion_path, load_motion, parse_motion
 from so101sim.simulation import Simulation
-from so101sim.units import JOINT_NAMES, STARTING_POSE, ZERO_POSE
+from so101sim.units import (
+    JOINT_NAMES,
+    LIMIT_TOLERANCE,
+    STARTING_POSE,
+    ZERO_POSE,
+    format_value,
+)
 
 
 def _parse(text: str):
@@ -136,6 +142,7 @@ LIMIT = default_units().limits_dict()
         ("start = 'half'\n[poses]\nhalf = { gripper = 5 }\n[[steps]]\nhold = 1\n", 1, "six"),
         ("description = 'x'\n", 1, "at least one step"),
         ("poses.a.shoulder_pan = 0\nposes.a.elbow = 1\n[[steps]]\nhold = 1\n", 2, "'elbow'"),
+        ("[poses.a]\nelbow_flex = 1\n'elbow_flex.pos' = 2\n[[steps]]\nhold = 1\n", 3, "twice"),
     ],
 )
 def test_every_loader_error_names_file_line_and_reason(text, line, reason):
@@ -155,7 +162,23 @@ def test_errors_in_the_nth_steps_table_point_at_that_table():
 def test_a_limit_error_gives_the_limits():
     err = _error("[[steps]]\nmove = { elbow_flex = 120 }\nduration = 1\n")
     lo, hi = LIMIT["elbow_flex"]
-    assert f"{lo:.2f}°..{hi:.2f}°" in err.reason
+    assert f"{format_value('elbow_flex', lo)}..{format_value('elbow_flex', hi)}" in err.reason
+
+
+def test_joint_values_are_checked_like_the_apis_poses():
+    lo, hi = LIMIT["gripper"]
+    # within the units' tolerance of a limit (a joint resting on its stop): the limit itself
+    near = hi + 0.9 * LIMIT_TOLERANCE
+    mf = _parse(f"[[steps]]\ngripper = {near!r}\nduration = 1\n")
+    assert mf.steps[0].target["gripper"] == hi
+    assert default_units().check_limits(np.array([0, 0, 0, 0, 0, near]))[5] == hi
+    # past the tolerance: the units' error, at the value's line, without the API's clip advice
+    far = hi + 2 * LIMIT_TOLERANCE
+    err = _error(f"[[steps]]\nhold = 1\n[[steps]]\nduration = 1\ngripper = {far!r}\n")
+    assert err.line == 5 and "outside the joint's limits" in err.reason
+    assert "clip" not in err.reason
+    closed = _parse(f"[poses]\nshut = {{ gripper = {lo - 0.1!r} }}\n[[steps]]\nhold = 1\n")
+    assert closed.poses["shut"] == {"gripper": lo}
 
 
 def test_loading_a_file(tmp_path):

@@ -11,7 +11,15 @@ from so101sim.errors import SettingError
 from so101sim.model import default_units
 from so101sim.motion import Hold, Move
 from so101sim.motionfile import lab_motion_path
-from so101sim.preflight import Thresholds, check_motion_file, format_report, preflight
+from so101sim.preflight import (
+    Thresholds,
+    check_motion_file,
+    describe,
+    format_report,
+    preflight,
+)
+from so101sim.preflight_judge import EffortFinding, TrackingFinding, judge
+from so101sim.preflight_measure import JointCheck, Measurements, StepCheck
 from so101sim.units import JOINT_NAMES, STARTING_POSE
 
 # The gripper tipped down into the floor in front of the arm.
@@ -100,12 +108,50 @@ def test_a_move_too_fast_for_the_actuators_fails():
     assert any("lags its target" in f for f in report.failures)
 
 
+def test_findings_are_the_failures_and_notes_as_data():
+    target = {**STARTING_POSE, "shoulder_lift": 0.0, "elbow_flex": 0.0}
+    report = preflight([Move(target, 0.1), Hold(0.5)])
+    failed = [f for f in report.findings if f.failed]
+    assert [describe(f, report.thresholds) for f in failed] == list(report.failures)
+    notes = [describe(f, report.thresholds) for f in report.findings if not f.failed]
+    assert notes == list(report.notes)
+    assert {(f.step, f.joint, type(f)) for f in failed} >= {
+        (1, "shoulder_lift", EffortFinding),
+        (1, "shoulder_lift", TrackingFinding),
+    }
+    # the table marks exactly the failed figures: two columns of two joints in two steps
+    table = format_report(report)
+    assert sum(line.count("!") for line in table.splitlines() if "ms" in line) == 8
+
+
+def test_judging_compares_each_figure_once():
+    joint = JointCheck(
+        limit_margin=0.5,
+        limit_side="upper",
+        peak_effort=0.95,
+        saturated=0.01,
+        peak_tracking_error=6.0,
+    )
+    step = StepCheck(1, "p", "move", 0, 0.0, 1.0, {"wrist_flex": joint, "gripper": joint}, ())
+    measured = Measurements((step,), {"wrist_flex": (-90.0, 90.0), "gripper": (0.0, 100.0)}, ())
+    kinds = [(f.joint, type(f).__name__, f.failed) for f in judge(measured, Thresholds())]
+    assert kinds == [
+        ("wrist_flex", "LimitFinding", True),
+        ("wrist_flex", "EffortFinding", False),  # above max_effort, but briefly: a note
+        ("wrist_flex", "TrackingFinding", True),
+        ("gripper", "EffortFinding", False),  # the gripper is exempt from the limit margin
+        ("gripper", "TrackingFinding", True),
+    ]
+
+
 def test_thresholds_are_applied(lab_report):
     tight = check_motion_file(lab_motion_path(), thresholds=Thresholds(limit_margin=3.0))
     assert not tight.passed
     assert all("shoulder_lift comes within" in f for f in tight.failures)
     with pytest.raises(SettingError, match="limit_margin"):
         Thresholds(limit_margin=-1)
+    with pytest.raises(SettingError, match="max_saturation"):
+        Thresholds(max_saturation=float("nan"))
 
 
 def test_stretched_limited_moves_are_noted_or_refused():

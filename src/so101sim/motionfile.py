@@ -36,20 +36,17 @@ previous target, so it returns full-pose :class:`~so101sim.motion.Move` and
 :class:`~so101sim.motion.Hold` steps. It rejects, as :class:`MotionFileError` with the file,
 line and reason: TOML syntax errors, unknown keys, unknown pose names, unknown joint names, bad
 units, values that are not finite numbers or lie outside the joint limits, and durations that
-are not numbers > 0.
-
-Line numbers: :mod:`tomllib` reports none for values, so the loader scans the text itself for
-table headers (``[poses]``, ``[poses.x]``, the n-th ``[[steps]]``), ``key =`` lines (dotted keys
-too) and the keys inside single-line inline tables, and maps each key path to its line. Where a
-path is not found that way (e.g. a multi-line ``steps = [...]`` array), the error points at the
-line of the nearest enclosing key or table that was found.
+are not numbers > 0. Joint values are checked by the units module as the API checks them: a
+value within :data:`~so101sim.units.LIMIT_TOLERANCE` past a limit is clipped onto it; durations
+and profile names by :mod:`so101sim.validation`. Line numbers come from
+:mod:`so101sim.motionfile_lines`.
 """
 
 from __future__ import annotations
 
-import re
 import tomllib
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -57,9 +54,16 @@ from typing import Any
 
 import numpy as np
 
-from .errors import DurationError, JointNameError, JointValueError, MotionFileError
+from .errors import (
+    JointLimitError,
+    JointNameError,
+    JointValueError,
+    MotionFileError,
+    SettingError,
+)
 from .model import default_units
 from .motion import PROFILES, Hold, Move, Segment
+from .motionfile_lines import KeyLines, toml_error_line
 from .units import (
     DEG_PER_RAD,
     GRIPPER,
@@ -68,10 +72,10 @@ from .units import (
     STARTING_POSE,
     ZERO_POSE,
     ArmUnits,
-    check_number,
     normalize_joint_name,
+    parse_pose,
 )
-from .validation import check_duration
+from .validation import check_choice, check_duration
 
 BUILTIN_POSES: dict[str, dict[str, float]] = {"rest": dict(STARTING_POSE), "zero": dict(ZERO_POSE)}
 """Poses every motion file may use without defining them."""
@@ -102,75 +106,56 @@ class MotionFile:
     description: str = ""
 
 
-# ---------------------------------------------------------------------------- line numbers
-_BARE = r"[A-Za-z0-9_-]+"
-_QUOTED = r"\"(?:[^\"\\]|\\.)*\"|'[^']*'"
-_KEYPART = rf"(?:{_BARE}|{_QUOTED})"
-_DOTTED = rf"{_KEYPART}(?:\s*\.\s*{_KEYPART})*"
-_HEADER_RE = re.compile(rf"^\s*(\[\[|\[)\s*({_DOTTED})\s*\]\]?")
-_KEY_RE = re.compile(rf"^\s*({_DOTTED})\s*=\s*(.*)$")
-_INLINE_KEY_RE = re.compile(rf"({_KEYPART})\s*=")
-_PART_RE = re.compile(_KEYPART)
-
-
-def _split_key(dotted: str) -> tuple[str, ...]:
-    parts = []
-    for p in _PART_RE.findall(dotted):
-        parts.append(p[1:-1] if p[:1] in "\"'" else p)
-    return tuple(parts)
-
-
-class _Locator:
-    """Maps key paths (``("steps", 2, "duration")``) to 1-based line numbers."""
-
-    def __init__(self, text: str) -> None:
-        self.lines: dict[tuple[Any, ...], int] = {}
-        table: tuple[Any, ...] = ()
-        counts: dict[tuple[str, ...], int] = {}
-        for number, raw in enumerate(text.splitlines(), start=1):
-            m = _HEADER_RE.match(raw)
-            if m:
-                path = _split_key(m.group(2))
-                if m.group(1) == "[[":
-                    k = counts.get(path, 0)
-                    counts[path] = k + 1
-                    table = (*path, k)
-                else:
-                    table = path
-                self.lines.setdefault(table, number)
-                continue
-            m = _KEY_RE.match(raw)
-            if not m:
-                continue
-            path = (*table, *_split_key(m.group(1)))
-            self.lines.setdefault(path, number)
-            value = m.group(2)
-            if value.lstrip().startswith("{"):
-                for inner in _INLINE_KEY_RE.findall(value):
-                    self.lines.setdefault((*path, *_split_key(inner)), number)
-
-    def line(self, path: tuple[Any, ...]) -> int:
-        for n in range(len(path), 0, -1):
-            if path[:n] in self.lines:
-                return self.lines[path[:n]]
-        return 1
-
-
 # ---------------------------------------------------------------------------- the loader
+Where = tuple[Any, ...]
+"""A key path in the file (``("steps", 2, "duration")``): an error's line is looked up by it."""
+
+_CHECK_ERRORS = (JointNameError, JointValueError, SettingError)
+"""What the units module and :mod:`so101sim.validation` raise (JointLimitError is a
+JointValueError, DurationError a SettingError): the loader turns them into MotionFileError."""
+
+
+def _file_reason(exc: Exception) -> str:
+    """The reason of a units or validation error, as said about a motion file."""
+    reason = str(exc)
+    if isinstance(exc, JointLimitError):
+        # The API's advice ("pass clip=True") has no counterpart in a file: keep what was wrong.
+        reason = reason.split("; choose", 1)[0] + "; choose a value inside them"
+    return reason
+
+
 class _Loader:
+    """Reads the TOML data of one motion file part by part, giving every error its line.
+
+    Joint names, numbers and limits are checked by the units module (``units``, the model's
+    own), durations and profile names by :mod:`so101sim.validation`; their errors become
+    :class:`MotionFileError` at the line of the key they came from.
+    """
+
     def __init__(self, text: str, path: str, units: ArmUnits) -> None:
         self.path = path
         self.units = units
-        self.loc = _Locator(text)
+        self.loc = KeyLines(text)
         self.radians = False  # body joints given in radians (units = "rad")
         lo, hi = units.limits
-        self.lo, self.hi = lo, hi
+        self.inside = (lo + hi) / 2  # a pose inside every limit: one joint is checked at a time
+        self.known: dict[str, dict[str, float]] = dict(BUILTIN_POSES)  # poses steps may name
+        self.default_profile = "linear"
 
-    def fail(self, where: tuple[Any, ...], reason: str) -> MotionFileError:
+    # ------------------------------------------------------------------------ errors
+    def fail(self, where: Where, reason: str) -> MotionFileError:
         return MotionFileError(self.path, self.loc.line(where), reason)
 
+    @contextmanager
+    def reasons(self, where: Where, prefix: str = "") -> Iterator[None]:
+        """Re-raise the units' and validation's errors as MotionFileError at ``where``'s line."""
+        try:
+            yield
+        except _CHECK_ERRORS as exc:
+            raise self.fail(where, prefix + _file_reason(exc)) from None
+
     def check_keys(
-        self, table: Mapping[str, Any], allowed: tuple[str, ...], where: tuple[Any, ...], what: str
+        self, table: Mapping[str, Any], allowed: tuple[str, ...], where: Where, what: str
     ) -> None:
         for key in table:
             if key not in allowed:
@@ -179,183 +164,176 @@ class _Loader:
                     f"unknown key {key!r} in {what}; expected {', '.join(allowed)}",
                 )
 
-    def duration(self, value: Any, where: tuple[Any, ...], what: str) -> float:
-        try:
-            return check_duration(value, what)
-        except DurationError as exc:
-            raise self.fail(where, str(exc)) from None
-
-    def profile(self, value: Any, where: tuple[Any, ...]) -> str:
-        if not isinstance(value, str) or value not in PROFILES:
-            raise self.fail(
-                where,
-                f"unknown profile {value!r}; expected one of {', '.join(sorted(PROFILES))}",
-            )
-        return value
-
-    def joint_value(self, name: str, value: Any, where: tuple[Any, ...]) -> float:
-        try:
-            v = check_number(name, value)
-        except JointValueError as exc:
-            raise self.fail(where, str(exc)) from None
-        i = JOINT_NAMES.index(name)
-        if self.radians and i != GRIPPER_INDEX:
-            v *= DEG_PER_RAD  # a body joint given in radians, to the arm's degrees
-        if not (self.lo[i] - 1e-9 <= v <= self.hi[i] + 1e-9):
-            unit = "" if name == GRIPPER else "°"
-            raise self.fail(
-                where,
-                f"{name} = {v:g}{unit} is outside the joint's limits "
-                f"{self.lo[i]:.2f}{unit}..{self.hi[i]:.2f}{unit}; choose a value inside them",
-            )
-        return float(min(max(v, self.lo[i]), self.hi[i]))
-
-    def pose(self, value: Any, where: tuple[Any, ...], *, full: bool = False) -> dict[str, float]:
-        if not isinstance(value, Mapping):
-            raise self.fail(
-                where,
-                f"a pose must be a table of joint = value, got {value!r}; e.g. "
-                "{ shoulder_lift = 10, gripper = 50 }",
-            )
-        out: dict[str, float] = {}
-        for key, v in value.items():
-            try:
-                name = normalize_joint_name(key)
-            except JointNameError as exc:
-                raise self.fail((*where, key), str(exc)) from None
-            if name in out:
-                raise self.fail((*where, key), f"joint {name!r} is given twice")
-            out[name] = self.joint_value(name, v, (*where, key))
-        missing = [n for n in JOINT_NAMES if n not in out]
-        if full and missing:
-            raise self.fail(
-                where,
-                f"the start pose is missing {', '.join(missing)}; it needs all six joints: "
-                f"{', '.join(JOINT_NAMES)}",
-            )
-        return {n: out[n] for n in JOINT_NAMES if n in out}
-
+    # ------------------------------------------------------------------------ the file
     def load(self, data: dict[str, Any]) -> MotionFile:
         self.check_keys(data, TOP_KEYS, (), "the motion file")
-        description = data.get("description", "")
-        if not isinstance(description, str):
+        description = self.description(data.get("description", ""))
+        self.radians = self.units_name(data.get("units", "deg")) == "rad"
+        self.default_profile = self.profile(data.get("profile", "linear"), ("profile",))
+        poses = self.poses(data.get("poses", {}))
+        self.known.update(poses)
+        start = self.start(data.get("start", "rest"))
+        steps = self.steps(data, start)
+        return MotionFile(
+            path=self.path,
+            start=start,
+            steps=tuple(step for step, _ in steps),
+            lines=tuple(line for _, line in steps),
+            poses=poses,
+            description=description,
+        )
+
+    def description(self, value: Any) -> str:
+        if not isinstance(value, str):
             raise self.fail(("description",), "description must be a string")
-        units = data.get("units", "deg")
-        if units not in UNITS:
+        return value
+
+    def units_name(self, value: Any) -> str:
+        if value not in UNITS:
             raise self.fail(
                 ("units",),
-                f"unknown units {units!r}; expected 'deg' (default) or 'rad' for the body "
+                f"unknown units {value!r}; expected 'deg' (default) or 'rad' for the body "
                 "joints (the gripper is always 0-100)",
             )
-        self.radians = units == "rad"
-        default_profile = self.profile(data.get("profile", "linear"), ("profile",))
+        return str(value)
 
-        poses: dict[str, dict[str, float]] = {}
-        raw_poses = data.get("poses", {})
-        if not isinstance(raw_poses, Mapping):
+    def profile(self, value: Any, where: Where) -> str:
+        with self.reasons(where):
+            return check_choice(value, "profile", sorted(PROFILES))
+
+    def duration(self, value: Any, where: Where, what: str) -> float:
+        with self.reasons(where):
+            return check_duration(value, what)
+
+    # ------------------------------------------------------------------------ poses
+    def poses(self, table: Any) -> dict[str, dict[str, float]]:
+        if not isinstance(table, Mapping):
             raise self.fail(("poses",), "poses must be a table of name = { joint = value }")
-        for name, value in raw_poses.items():
+        poses: dict[str, dict[str, float]] = {}
+        for name, value in table.items():
             if name in BUILTIN_POSES:
                 raise self.fail(
                     ("poses", name),
                     f"pose {name!r} is built in and cannot be redefined; choose another name",
                 )
             poses[name] = self.pose(value, ("poses", name))
-        known = {**BUILTIN_POSES, **poses}
+        return poses
 
-        start_value = data.get("start", "rest")
-        if isinstance(start_value, str):
-            if start_value not in known:
-                raise self.unknown_pose(start_value, ("start",), known)
-            start = dict(known[start_value])
-            if len(start) != len(JOINT_NAMES):
-                raise self.fail(
-                    ("start",),
-                    f"the start pose {start_value!r} names only {', '.join(start)}; it needs "
-                    f"all six joints: {', '.join(JOINT_NAMES)}",
-                )
+    def pose(self, value: Any, where: Where) -> dict[str, float]:
+        """A pose table, maybe partial: ``{joint: value}`` in arm units, JOINT_NAMES order.
+
+        The pose is checked by the units module one key more at a time, so that the first key
+        that makes it invalid (unknown, given twice, not a number, past a limit) gets the line.
+        """
+        if not isinstance(value, Mapping):
+            raise self.fail(
+                where,
+                f"a pose must be a table of joint = value, got {value!r}; e.g. "
+                "{ shoulder_lift = 10, gripper = 50 }",
+            )
+        given: dict[str, Any] = {}
+        out: dict[str, float] = {}
+        for key, raw in value.items():
+            given[key] = raw
+            with self.reasons((*where, key)):
+                name = normalize_joint_name(key)
+                out[name] = self.in_limits(name, parse_pose(given, partial=True)[name])
+        return {n: out[n] for n in JOINT_NAMES if n in out}
+
+    def in_limits(self, name: str, value: float) -> float:
+        """A joint's value from the file in arm units (radians converted), checked against the
+        joint's limits by the units (a value within LIMIT_TOLERANCE is clipped onto the limit).
+        """
+        i = JOINT_NAMES.index(name)
+        if self.radians and i != GRIPPER_INDEX:
+            value *= DEG_PER_RAD  # a body joint given in radians, to the arm's degrees
+        values = self.inside.copy()
+        values[i] = value
+        return float(self.units.check_limits(values)[i])
+
+    def named(self, name: str, where: Where) -> dict[str, float]:
+        if name not in self.known:
+            raise self.fail(
+                where,
+                f"unknown pose {name!r}; defined poses are {', '.join(sorted(self.known))} "
+                "(add it under [poses])",
+            )
+        return self.known[name]
+
+    def start(self, value: Any) -> dict[str, float]:
+        """The start pose, named or inline; it must give all six joints."""
+        if isinstance(value, str):
+            pose, prefix = self.named(value, ("start",)), f"start = {value!r}: "
         else:
-            start = self.pose(start_value, ("start",), full=True)
+            pose, prefix = self.pose(value, ("start",)), "start: "
+        with self.reasons(("start",), prefix):
+            parse_pose(pose)  # all six joints
+        return dict(pose)
 
-        raw_steps = data.get("steps")
-        if not isinstance(raw_steps, list) or not raw_steps:
+    # ------------------------------------------------------------------------ steps
+    def steps(self, data: Mapping[str, Any], start: dict[str, float]) -> list[tuple[Segment, int]]:
+        """Every step as a full-pose Move or a Hold, with the line it starts on."""
+        table = data.get("steps")
+        if not isinstance(table, list) or not table:
             raise self.fail(
                 ("steps",) if "steps" in data else (),
                 "a motion file needs at least one step: [[steps]] with move, hold or gripper",
             )
         current = np.array([start[n] for n in JOINT_NAMES])
-        steps: list[Segment] = []
-        lines: list[int] = []
-        for i, raw in enumerate(raw_steps):
-            where = ("steps", i)
-            if not isinstance(raw, Mapping):
-                raise self.fail(where, f"step {i + 1} must be a table, got {raw!r}")
-            kinds = [k for k in STEP_KEYS if k in raw]
-            if len(kinds) != 1:
-                raise self.fail(
-                    where,
-                    f"step {i + 1} must have exactly one of move, hold, gripper; "
-                    f"it has {', '.join(kinds) or 'none'}",
-                )
-            kind = kinds[0]
-            self.check_keys(raw, STEP_KEYS[kind], where, f"a {kind} step")
-            name = raw.get("name")
-            if name is not None and not isinstance(name, str):
-                raise self.fail((*where, "name"), f"name must be a string, got {name!r}")
-            lines.append(self.loc.line(where))
-            if kind == "hold":
-                d = self.duration(raw["hold"], (*where, "hold"), f"step {i + 1} hold")
-                steps.append(Hold(d, phase=name or "hold"))
-                continue
-            if "duration" not in raw:
-                raise self.fail(where, f"step {i + 1} ({kind}) needs a duration in seconds")
-            d = self.duration(raw["duration"], (*where, "duration"), f"step {i + 1} duration")
-            profile = self.profile(raw.get("profile", default_profile), (*where, "profile"))
-            target = current.copy()
-            if kind == "gripper":
-                target[GRIPPER_INDEX] = self.joint_value(GRIPPER, raw["gripper"], (*where, kind))
-                default_name = "gripper"
-            else:
-                value = raw["move"]
-                if isinstance(value, str):
-                    if value not in known:
-                        raise self.unknown_pose(value, (*where, "move"), known)
-                    pose = known[value]
-                    default_name = f"to_{value}"
-                else:
-                    pose = self.pose(value, (*where, "move"))
-                    default_name = "move"
-                for joint, v in pose.items():
-                    target[JOINT_NAMES.index(joint)] = v
-            current = target
-            steps.append(
-                Move(
-                    self.units.array_to_pose(target),
-                    d,
-                    profile=profile,
-                    phase=name or default_name,
-                )
+        steps: list[tuple[Segment, int]] = []
+        for i, raw in enumerate(table):
+            step, current = self.step(i, raw, current)
+            steps.append((step, self.loc.line(("steps", i))))
+        return steps
+
+    def step(self, i: int, raw: Any, current: np.ndarray) -> tuple[Segment, np.ndarray]:
+        """Step ``i`` (0-based) from the target ``current``, and the target after it."""
+        where = ("steps", i)
+        kind = self.step_kind(i, raw, where)
+        name = self.step_name(raw, where)
+        if kind == "hold":
+            d = self.duration(raw["hold"], (*where, "hold"), f"step {i + 1} hold")
+            return Hold(d, phase=name or "hold"), current
+        if "duration" not in raw:
+            raise self.fail(where, f"step {i + 1} ({kind}) needs a duration in seconds")
+        d = self.duration(raw["duration"], (*where, "duration"), f"step {i + 1} duration")
+        profile = self.profile(raw.get("profile", self.default_profile), (*where, "profile"))
+        target, label = self.target(kind, raw[kind], current, (*where, kind))
+        pose = self.units.array_to_pose(target)
+        return Move(pose, d, profile=profile, phase=name or label), target
+
+    def step_kind(self, i: int, raw: Any, where: Where) -> str:
+        """``"move"``, ``"hold"`` or ``"gripper"``, once the step's keys are checked."""
+        if not isinstance(raw, Mapping):
+            raise self.fail(where, f"step {i + 1} must be a table, got {raw!r}")
+        kinds = [k for k in STEP_KEYS if k in raw]
+        if len(kinds) != 1:
+            raise self.fail(
+                where,
+                f"step {i + 1} must have exactly one of move, hold, gripper; "
+                f"it has {', '.join(kinds) or 'none'}",
             )
-        return MotionFile(
-            path=self.path,
-            start=start,
-            steps=tuple(steps),
-            lines=tuple(lines),
-            poses=poses,
-            description=description,
-        )
+        self.check_keys(raw, STEP_KEYS[kinds[0]], where, f"a {kinds[0]} step")
+        return kinds[0]
 
-    def unknown_pose(
-        self, name: Any, where: tuple[Any, ...], known: Iterable[str]
-    ) -> MotionFileError:
-        return self.fail(
-            where,
-            f"unknown pose {name!r}; defined poses are {', '.join(sorted(known))} "
-            "(add it under [poses])",
-        )
+    def step_name(self, raw: Mapping[str, Any], where: Where) -> str | None:
+        name = raw.get("name")
+        if name is not None and not isinstance(name, str):
+            raise self.fail((*where, "name"), f"name must be a string, got {name!r}")
+        return name
 
-
-_TOML_LINE_RE = re.compile(r"\(at line (\d+), column \d+\)")  # tomllib's position
+    def target(
+        self, kind: str, value: Any, current: np.ndarray, where: Where
+    ) -> tuple[np.ndarray, str]:
+        """A move's or gripper step's full target (joints it does not name keep ``current``),
+        and the step's default name."""
+        if kind == "gripper":
+            pose, label = self.pose({GRIPPER: value}, where), "gripper"
+        elif isinstance(value, str):
+            pose, label = self.named(value, where), f"to_{value}"
+        else:
+            pose, label = self.pose(value, where), "move"
+        return self.units.pose_to_array(pose, base=current, check_limits=False), label
 
 
 def parse_motion(text: str, *, path: str = "<string>", units: ArmUnits | None = None) -> MotionFile:
@@ -369,13 +347,7 @@ def parse_motion(text: str, *, path: str = "<string>", units: ArmUnits | None = 
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        msg = str(exc)
-        m = _TOML_LINE_RE.search(msg)
-        # "(at line L, column C)", or "(at end of document)": then the last line
-        line = int(m.group(1)) if m else max(1, len(text.splitlines()))
-        reason = _TOML_LINE_RE.sub("", msg).replace("(at end of document)", "").strip()
-        if not m:
-            reason += " at the end of the file"
+        line, reason = toml_error_line(exc, text)
         raise MotionFileError(path, line, f"not valid TOML: {reason}") from None
     return _Loader(text, path, units if units is not None else default_units()).load(data)
 

@@ -41,6 +41,7 @@ from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
 from .errors import SettingError, TrajectoryLimitError
 from .model import default_units
 from .units import JOINT_NAMES, ArmUnits
+from .validation import check_range
 
 log = logging.getLogger(__name__)
 
@@ -56,13 +57,15 @@ class JointLimits:
     jerk: tuple[float, ...]  # deg/s³
 
     def __post_init__(self) -> None:
+        expected = f"{_N} finite numbers > 0 (one per joint: {', '.join(JOINT_NAMES)})"
         for what in ("velocity", "acceleration", "jerk"):
-            values = tuple(float(v) for v in getattr(self, what))
-            if len(values) != _N or not all(math.isfinite(v) and v > 0 for v in values):
-                raise SettingError(
-                    f"{what} limits must be {_N} finite numbers > 0 (one per joint: "
-                    f"{', '.join(JOINT_NAMES)}), got {values!r}"
-                )
+            given = tuple(getattr(self, what))
+            if len(given) != _N:
+                raise SettingError(f"{what} limits = {given!r} are invalid; expected {expected}")
+            values = tuple(
+                check_range(v, f"{what} limit of {name}", low=0.0, low_open=True, expected=expected)
+                for name, v in zip(JOINT_NAMES, given, strict=True)
+            )
             object.__setattr__(self, what, values)
 
     @classmethod
