@@ -26,7 +26,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("model", ("model",)),
     ("profiles", ("profiles", "trajectory")),
     ("simulation", ("simulation",)),
-    ("motion", ("motion", "motionfile")),
+    ("motion", ("motion", "motionfile", "motionfile_*")),
     (
         "outputs",
         (

@@ -145,3 +145,16 @@ def test_convert_to_dictionary_says_what_it_needs():
         convert_to_dictionary([0, 0, 0])
     with pytest.raises(JointValueError, match="not a list of numbers"):
         convert_to_dictionary(["a", "b"])
+
+
+def test_the_limit_errors_advice_works_on_the_lab_helpers(md):
+    m, d = md
+    set_initial_pose(d, STARTING_POSE)
+    too_far = {**ZERO_POSE, "elbow_flex": 120.0}
+    with pytest.raises(JointLimitError, match="clip=True") as info:
+        move_to_pose(m, d, None, too_far, 0.5)
+    assert info.value.joint == "elbow_flex" and info.value.value == 120.0
+    r = move_to_pose(m, d, None, too_far, 0.5, clip=True)  # the advice is true here
+    assert r.target["elbow_flex"] == pytest.approx(info.value.upper)
+    send_position_command(d, too_far, clip=True)
+    set_initial_pose(d, too_far, clip=True)

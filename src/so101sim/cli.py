@@ -383,8 +383,8 @@ def _add_teleop_parser(sub: argparse._SubParsersAction) -> None:
 
 def cmd_teleop(args: argparse.Namespace) -> int:
     from . import teleop
-    from .robot_helpers import check_fps
     from .robot import SO101SimFollower, SO101SimFollowerConfig
+    from .robot_helpers import check_fps
     from .validation import check_duration
 
     # Check the numbers before opening anything (port, robot, viewer).

@@ -20,7 +20,26 @@ class JointValueError(So101SimError, ValueError):
 
 
 class JointLimitError(JointValueError):
-    """A joint target lies outside the joint's limits (in the arm's units)."""
+    """A joint target lies outside the joint's limits (in the arm's units).
+
+    ``what`` is the fact ("elbow_flex = 120° is outside the joint's limits -96.8°..96.8°") and
+    ``advice`` what the caller can do about it; the message is both. ``joint``, ``value``,
+    ``lower`` and ``upper`` are kept as attributes.
+    """
+
+    def __init__(
+        self,
+        what: str,
+        advice: str = "",
+        *,
+        joint: str = "",
+        value: float = float("nan"),
+        lower: float = float("nan"),
+        upper: float = float("nan"),
+    ) -> None:
+        self.what, self.advice = what, advice
+        self.joint, self.value, self.lower, self.upper = joint, value, lower, upper
+        super().__init__(f"{what}; {advice}" if advice else what)
 
 
 class SettingError(So101SimError, ValueError):

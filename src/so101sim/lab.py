@@ -22,7 +22,8 @@ What differs from the handout, and why:
   the last *commanded* target; before any command it holds the pose it finds.
 * **Validation.** Unknown or missing joint names, non-numeric or non-finite values, targets
   outside the joint limits and durations ≤ 0 raise a clear :class:`~so101sim.So101SimError`
-  before anything moves.
+  before anything moves. ``clip=True`` (a keyword the handout's helpers did not have) clips
+  targets to the joint limits instead of refusing them.
 
 ``viewer`` may be ``None`` to run headless.
 """
@@ -83,23 +84,23 @@ def convert_to_list(position_dict: Pose) -> list[float]:
     return units.to_radians(units.pose_to_array(position_dict, check_limits=False)).tolist()
 
 
-def set_initial_pose(d: mujoco.MjData, position_dict: Pose) -> None:
+def set_initial_pose(d: mujoco.MjData, position_dict: Pose, *, clip: bool = False) -> None:
     """Place the arm at ``position_dict`` (at rest) and command it to stay there.
 
     Unlike the handout, this also sets the position targets, so the arm holds the pose rather
     than falling towards the targets' default of 0 on the first step.
     """
-    Simulation.attach(d.model, d).set_pose(position_dict)
+    Simulation.attach(d.model, d).set_pose(position_dict, clip=clip)
 
 
-def send_position_command(d: mujoco.MjData, position_dict: Pose) -> None:
+def send_position_command(d: mujoco.MjData, position_dict: Pose, *, clip: bool = False) -> None:
     """Set the position actuators' targets to ``position_dict`` (all six joints).
 
     MuJoCo's position actuators then pull each joint towards its target with the model's PD
     gains. Raises before changing anything if a name, value or limit is wrong.
     """
     sim = Simulation.attach(d.model, d)
-    sim.command_array(sim.units.pose_to_array(position_dict), check=False)
+    sim.command_array(sim.units.pose_to_array(position_dict, clip=clip), check=False)
 
 
 def move_to_pose(
@@ -108,6 +109,8 @@ def move_to_pose(
     viewer: Any,
     desired_position: Pose,
     duration: float,
+    *,
+    clip: bool = False,
 ) -> SegmentResult:
     """Move in a straight line (per joint) from the last commanded target to
     ``desired_position`` over ``duration`` seconds of simulated time.
@@ -116,7 +119,7 @@ def move_to_pose(
     clock. Returns the move's :class:`~so101sim.simulation.SegmentResult` (the handout
     returned nothing; ignoring the result is fine). If the viewer is closed, returns early.
     """
-    return Simulation.attach(m, d).move_to(desired_position, duration, viewer=viewer)
+    return Simulation.attach(m, d).move_to(desired_position, duration, viewer=viewer, clip=clip)
 
 
 def hold_position(

@@ -117,11 +117,10 @@ JointValueError, DurationError a SettingError): the loader turns them into Motio
 
 def _file_reason(exc: Exception) -> str:
     """The reason of a units or validation error, as said about a motion file."""
-    reason = str(exc)
     if isinstance(exc, JointLimitError):
         # The API's advice ("pass clip=True") has no counterpart in a file: keep what was wrong.
-        reason = reason.split("; choose", 1)[0] + "; choose a value inside them"
-    return reason
+        return f"{exc.what}; choose a value inside them"
+    return str(exc)
 
 
 class _Loader:

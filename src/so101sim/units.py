@@ -165,8 +165,13 @@ class ArmUnits:
             n = JOINT_NAMES[i]
             raise JointLimitError(
                 f"{n} = {format_value(n, values[i])} is outside the joint's limits "
-                f"{format_value(n, lo[i])}..{format_value(n, hi[i])}; choose a target inside "
-                "them, or pass clip=True to clip targets to the limits instead"
+                f"{format_value(n, lo[i])}..{format_value(n, hi[i])}",
+                "choose a target inside them, or pass clip=True to clip targets to the limits "
+                "instead",
+                joint=n,
+                value=float(values[i]),
+                lower=float(lo[i]),
+                upper=float(hi[i]),
             )
         return np.clip(values, lo, hi)  # only corrections within the tolerance remain
 
