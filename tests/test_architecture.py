@@ -24,7 +24,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("errors/validation", ("errors", "validation", "gl", "simclock")),
     ("units", ("units",)),
     ("model", ("model",)),
-    ("profiles", ("profiles", "trajectory")),
+    ("planning", ("profiles", "trajectory", "kinematics", "kinematics_*")),
     ("simulation", ("simulation",)),
     ("motion", ("motion", "motionfile", "motionfile_*")),
     (
@@ -37,8 +37,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
             "preflight.*",
             "preflight_*",
             "posefinder",
-            "kinematics",
-            "kinematics.*",
+            "framing",
             "scenes",
             "scenes.*",
             "cameras",
