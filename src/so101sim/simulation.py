@@ -590,8 +590,17 @@ class Simulation:
             obs = self._observers(viewer, observers)
             return advance(self.model, self.data, q, obs, phase, keep_trace=keep_trace)
 
-    def step(self, n: int = 1, *, viewer: Any = None, observers: Sequence[Observer] = ()) -> Trace:
-        """Take ``n`` physics steps holding the current target."""
+    def step(
+        self,
+        n: int = 1,
+        *,
+        viewer: Any = None,
+        observers: Sequence[Observer] = (),
+        trace: bool | None = None,
+    ) -> Trace:
+        """Take ``n`` physics steps holding the current target. The :class:`Trace` keeps
+        per-step arrays when ``trace`` is True, or (None) when ``n`` is at most
+        :data:`TRACE_AUTO_STEPS`."""
         n = check_count(n, "n", unit=" steps", maximum=round(MAX_DURATION_S / self.timestep))
         target = self.commanded_array()
         return self.advance(
@@ -599,6 +608,7 @@ class Simulation:
             viewer=viewer,
             observers=observers,
             phase="step",
+            keep_trace=_keep(trace, n),
         )
 
     def plan_move(
@@ -630,9 +640,9 @@ class Simulation:
         target: Pose,
         duration: float,
         *,
-        profile: str | Profile = "linear",
         viewer: Any = None,
         observers: Sequence[Observer] = (),
+        profile: str | Profile = "linear",
         clip: bool = False,
         phase: str = "move",
         trace: bool | None = None,

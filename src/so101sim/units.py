@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import JointLimitError, JointNameError, JointValueError
-from .validation import is_real
+from .validation import check_range
 
 JOINT_NAMES: tuple[str, ...] = (
     "shoulder_pan",
@@ -220,30 +220,11 @@ def normalize_joint_name(key: object) -> str:
     )
 
 
-def _scalar(value: object) -> bool:
-    """A real number, or a 0-d array or tensor holding one (NumPy's, or a framework's with
-    ``ndim == 0`` and ``__float__``, as LeRobot's replay sends)."""
-    if is_real(value):
-        return True
-    if getattr(value, "ndim", None) != 0 or not hasattr(value, "__float__"):
-        return False
-    dtype = str(getattr(value, "dtype", ""))
-    return not any(k in dtype for k in ("bool", "complex", "str", "object"))
-
-
 def check_number(name: str, value: object) -> float:
     """Return ``value`` as a float if it is a finite real number (or a 0-d array/tensor of
     one), else raise JointValueError."""
     expected = f"a finite value in {'0..100' if name == GRIPPER else 'degrees'}"
-    if not _scalar(value):
-        raise JointValueError(f"{name} = {value!r} is not a number; expected {expected}")
-    try:
-        v = float(value)  # type: ignore[arg-type]
-    except OverflowError:  # an int too large for a float
-        raise JointValueError(f"{name} = {value!r} is too large; expected {expected}") from None
-    if not math.isfinite(v):
-        raise JointValueError(f"{name} = {v} is not finite; expected a finite number")
-    return v
+    return check_range(value, name, expected=expected, error=JointValueError)
 
 
 def parse_pose(pose: Pose, *, partial: bool = False) -> dict[str, float]:

@@ -26,8 +26,15 @@ MAX_RATE_HZ = 10_000.0
 
 
 def is_real(value: object) -> bool:
-    """True for a real number (int, float, NumPy scalar), False for bools and anything else."""
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+    """True for a real number (int, float, NumPy scalar) or a 0-d array or tensor holding one
+    (NumPy's, or a framework's with ``ndim == 0`` and ``__float__``, as LeRobot sends); False
+    for bools, strings and anything else."""
+    if isinstance(value, numbers.Real):
+        return not isinstance(value, bool)
+    if getattr(value, "ndim", None) != 0 or not hasattr(value, "__float__"):
+        return False
+    dtype = str(getattr(value, "dtype", ""))
+    return not any(k in dtype for k in ("bool", "complex", "str", "object"))
 
 
 def _as_float(value: object, what: str, unit: str, expected: str, error: type[Exception]) -> float:
