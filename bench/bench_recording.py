@@ -25,7 +25,6 @@ from pathlib import Path
 
 import mujoco
 
-import so101sim  # noqa: F401  (chooses the OpenGL backend before mujoco is imported)
 from so101sim import LAB_MOTION, Simulation, gl, run_motion
 from so101sim.recording import FrameRenderer, Recorder, VideoSettings, render_model
 from so101sim.units import STARTING_POSE, ZERO_POSE
@@ -79,7 +78,8 @@ def main() -> None:
     p.add_argument("--full-video", action="store_true", help="also record the lab in full")
     args = p.parse_args()
 
-    print(f"OpenGL: MUJOCO_GL={os.environ.get('MUJOCO_GL')}, renderer {gl.renderer_string()!r}")
+    backend = gl.prepare_for_rendering()  # what the first renderer would choose
+    print(f"OpenGL: MUJOCO_GL={backend} ({gl.selection}), renderer {gl.renderer_string()!r}")
     print(f"CPU cores: {os.cpu_count()}, load average before: {os.getloadavg()[0]:.2f}")
     sim = Simulation()
     print("\nvisual meshes (what each preset draws of the shipped model)")

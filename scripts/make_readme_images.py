@@ -11,7 +11,6 @@ from pathlib import Path
 
 import imageio.v2 as imageio
 
-import so101sim  # noqa: F401  (chooses the OpenGL backend before mujoco is imported)
 from so101sim import Simulation
 from so101sim.recording import FrameRenderer, VideoSettings
 

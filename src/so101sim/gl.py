@@ -1,9 +1,13 @@
-"""Choosing MuJoCo's OpenGL backend, which must happen before ``mujoco`` is first imported.
+"""Choosing MuJoCo's OpenGL backend for offscreen rendering, when rendering is asked for.
 
 With no display (a server, CI, ssh), offscreen rendering needs EGL (Mesa renders it on the
 CPU when there is no GPU) or, failing that, OSMesa. If ``MUJOCO_GL`` is already set, it is left
-alone. The choice only looks for the libraries (a ``dlopen``, no GL context is made), so
-importing so101sim stays cheap; :func:`backend_help` says what to install when none is found.
+alone. Importing this module changes nothing: :func:`prepare_for_rendering` makes the choice,
+and is called by whatever is about to render (the recorder's frame renderer, the renderer
+query); a command that will render can call it early, before ``mujoco`` is imported, so that
+MuJoCo reads the choice from ``MUJOCO_GL``. Called later, it switches the context class
+MuJoCo's ``Renderer`` uses instead. The choice only looks for the libraries (a ``dlopen``, no
+GL context is made); :func:`backend_help` says what to install when none is found.
 """
 
 from __future__ import annotations
@@ -25,7 +29,10 @@ _LIBRARIES: dict[str, tuple[str, ...]] = {
 _FIND_NAMES = {"egl": "EGL", "osmesa": "OSMesa"}
 
 selection = "not made yet"
-"""What :func:`select_backend` did, for error messages."""
+"""What :func:`prepare_for_rendering` did, for error messages."""
+
+_chosen: str | None = None
+"""The backend so101sim put in ``MUJOCO_GL`` (None: it set nothing)."""
 
 INSTALL_HINT = (
     "install Mesa's EGL (Debian/Ubuntu: `apt-get install libegl1 libgl1-mesa-dri`) or OSMesa "
@@ -69,39 +76,65 @@ def _mujoco_imported() -> bool:
     return "mujoco" in sys.modules
 
 
+def prepare_for_rendering(loader: Callable[[str], bool] = _dlopen) -> str | None:
+    """Make offscreen rendering possible here, before the first renderer starts; return
+    ``MUJOCO_GL`` (None: MuJoCo's default, or no backend loads).
+
+    Before ``mujoco`` is imported: :func:`select_backend` (sets ``MUJOCO_GL``, which MuJoCo
+    reads when it is imported). After, with no display and ``MUJOCO_GL`` unset:
+    :func:`ensure_offscreen_backend` (switches MuJoCo's context class). Cheap to call again.
+    """
+    if "MUJOCO_GL" in os.environ or not headless() or not _mujoco_imported():
+        return select_backend(loader)
+    return ensure_offscreen_backend(loader)
+
+
+def _set_backend(backend: str, why: str) -> None:
+    global selection, _chosen
+    os.environ["MUJOCO_GL"] = _chosen = backend
+    selection = why
+    log.debug("OpenGL backend: %s", selection)
+
+
 def select_backend(loader: Callable[[str], bool] = _dlopen) -> str | None:
     """With no display and nothing chosen, set ``MUJOCO_GL`` to EGL, or OSMesa when EGL does not
-    load; return the choice (None: none loads, rendering will fail with :func:`backend_help`)."""
+    load; return the choice (None: none loads, rendering will fail with :func:`backend_help`).
+
+    Only useful before ``mujoco`` is imported (see :func:`prepare_for_rendering`)."""
     global selection
-    if "MUJOCO_GL" in os.environ:
-        selection = "MUJOCO_GL was set before so101sim was imported"
-    elif not headless():
+    chosen = os.environ.get("MUJOCO_GL")
+    if chosen is not None:
+        if chosen != _chosen:
+            selection = "MUJOCO_GL was set outside so101sim"
+        return chosen
+    if not headless():
         selection = "a display is available: MuJoCo's default (GLFW)"
     elif _mujoco_imported():
         selection = (
-            "mujoco was imported before so101sim, too late to choose a headless backend "
-            "(import so101sim first, or set MUJOCO_GL=egl)"
+            "mujoco was imported before a backend was chosen, too late to set MUJOCO_GL "
+            "(call so101sim.gl.prepare_for_rendering() first, or set MUJOCO_GL=egl)"
         )
     else:
         backend = choose_headless_backend(loader)
         if backend is not None:
-            os.environ["MUJOCO_GL"] = backend
-            selection = f"no display: chose {backend} (its library loads)"
-        else:
-            selection = "no display, and neither libEGL nor libOSMesa loads"
+            _set_backend(backend, f"no display: chose {backend} (its library loads)")
+            return backend
+        selection = "no display, and neither libEGL nor libOSMesa loads"
     log.debug("OpenGL backend: %s", selection)
-    return os.environ.get("MUJOCO_GL")
+    return None
 
 
 def ensure_offscreen_backend(loader: Callable[[str], bool] = _dlopen) -> str | None:
-    """Make offscreen rendering possible when ``mujoco`` was imported before so101sim on a
-    machine with no display (MuJoCo then picked GLFW, which needs one): switch the context class
-    its ``Renderer`` uses to EGL, or OSMesa, whichever loads. Returns ``MUJOCO_GL``."""
+    """Make offscreen rendering possible when ``mujoco`` was imported before a backend was
+    chosen, on a machine with no display (MuJoCo then picked GLFW, which needs one): switch the
+    context class its ``Renderer`` uses to EGL, or OSMesa, whichever loads. Returns
+    ``MUJOCO_GL``."""
     global selection
     if os.environ.get("MUJOCO_GL") or not headless():
         return os.environ.get("MUJOCO_GL")
     backend = choose_headless_backend(loader)
     if backend is None:
+        selection = "no display, and neither libEGL nor libOSMesa loads"
         return None
     try:
         from mujoco.rendering.classic import gl_context
@@ -111,12 +144,11 @@ def ensure_offscreen_backend(loader: Callable[[str], bool] = _dlopen) -> str | N
         else:
             from mujoco.osmesa import GLContext
     except ImportError as exc:  # another mujoco layout, or PyOpenGL bound to another platform
-        log.debug("could not switch MuJoCo's GL context to %s: %s", backend, exc)
+        selection = f"could not switch MuJoCo's GL context to {backend}: {exc}"
+        log.debug("OpenGL backend: %s", selection)
         return None
     gl_context.GLContext = GLContext
-    os.environ["MUJOCO_GL"] = backend
-    selection = f"mujoco was imported before so101sim with no display: switched to {backend}"
-    log.debug("OpenGL backend: %s", selection)
+    _set_backend(backend, f"mujoco was imported first, with no display: switched to {backend}")
     return backend
 
 
@@ -131,9 +163,6 @@ def backend_help(error: BaseException | str | None = None) -> str:
     )
 
 
-select_backend()
-
-
 _renderer_string: str | None = None
 
 
@@ -142,7 +171,7 @@ def renderer_string() -> str:
     Mesa on a CPU), from a 16×16 offscreen context made once per process; "" if none starts."""
     global _renderer_string
     if _renderer_string is None:
-        ensure_offscreen_backend()
+        prepare_for_rendering()
         try:
             from mujoco.rendering.classic import gl_context
             from OpenGL import GL

@@ -1,0 +1,80 @@
+"""Recording a run: an MP4 video, a plot of commanded vs measured angles, and a CSV log.
+
+Everything here is an :class:`so101sim.simulation.Observer`, so any run of moves and holds can
+write to it, and all of it is clocked by *simulated* time: a 6 s motion at 30 frames/s is
+181 frames (t = 0, 1/30, …, 6 s) however fast the machine renders.
+
+>>> sim = Simulation()
+>>> with Recorder(sim, video="lab.mp4", plot="lab.png", log="lab.csv"):
+...     sim.move_to(ZERO_POSE, 2.0, phase="to_zero")
+...     sim.hold(2.0)
+
+Every output path is checked (folder exists and is writable, file absent unless
+``force=True``) before anything runs. Files are written under a temporary name in the same
+folder and renamed when closed, also after Ctrl-C or an error, so a path holds either a
+complete, playable file of what ran or nothing.
+
+Rendering uses ``mujoco.Renderer`` on a private copy of the model (its offscreen buffer raised
+to the frame size), fed the simulation's joint angles: the physics model is never touched.
+The ``draft`` quality preset (the default on a CPU) swaps the visual meshes for simplified ones
+shipped in ``so101sim/data/draft_meshes`` and turns off shadows, reflections and
+multisampling, which makes a CPU renderer (Mesa llvmpipe) about 20× faster; ``full`` keeps the
+model's look. Importing this package sets no environment variable: the OpenGL backend is chosen
+when the first renderer starts (:func:`so101sim.gl.prepare_for_rendering`).
+
+The modules, one job each:
+
+- :mod:`.settings`: :class:`VideoSettings`, quality presets, cameras;
+- :mod:`.paths`: output path checks, files written under a temporary name;
+- :mod:`.draft`: the private render model and the ``draft`` meshes;
+- :mod:`.frames`: :class:`FrameRenderer` (offscreen frames) and the caption;
+- :mod:`.video`: :class:`VideoRecorder` (MP4), :func:`video_frames`;
+- :mod:`.csvlog`: :class:`CsvLog`, :func:`csv_columns`;
+- :mod:`.plot`: :class:`RunLog`, :class:`TraceCollector`, :func:`plot_run`;
+- :mod:`.recorder`: :class:`Recorder`, all of the above at once.
+"""
+
+from .csvlog import CsvLog, csv_columns
+from .draft import SHIPPED_MODEL_FILES, draft_mesh_dir, draft_source, render_model
+from .frames import FrameRenderer
+from .paths import check_output_path
+from .plot import PLOT_SUFFIXES, RunLog, TraceCollector, plot_run
+from .recorder import Recorder
+from .settings import (
+    FREE_CAMERA,
+    MAX_FPS,
+    QUALITIES,
+    QUALITY_CHOICES,
+    VideoSettings,
+    camera_names,
+    check_camera,
+    resolve_quality,
+)
+from .video import VIDEO_SUFFIXES, VideoRecorder, video_frames
+
+__all__ = [
+    "FREE_CAMERA",
+    "MAX_FPS",
+    "PLOT_SUFFIXES",
+    "QUALITIES",
+    "QUALITY_CHOICES",
+    "SHIPPED_MODEL_FILES",
+    "VIDEO_SUFFIXES",
+    "CsvLog",
+    "FrameRenderer",
+    "Recorder",
+    "RunLog",
+    "TraceCollector",
+    "VideoRecorder",
+    "VideoSettings",
+    "camera_names",
+    "check_camera",
+    "check_output_path",
+    "csv_columns",
+    "draft_mesh_dir",
+    "draft_source",
+    "plot_run",
+    "render_model",
+    "resolve_quality",
+    "video_frames",
+]
