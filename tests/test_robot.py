@@ -431,8 +431,12 @@ def test_viewer_is_synced_and_closed_with_the_robot(xvfb):
         robot = SO101SimFollower(SO101SimFollowerConfig(viewer=True))
         with robot:
             assert robot.viewer_open
+            t0 = robot.time
             robot.send_action({"shoulder_pan.pos": 10.0})
-            time.sleep(0.3)
+            deadline = time.monotonic() + 60  # however busy the machine: wait on simulated time
+            while robot.time - t0 < 0.3 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            assert robot.time - t0 >= 0.3, robot.time - t0
             pan = robot.get_observation()["shoulder_pan.pos"]
         assert not robot.viewer_open
         assert set(threading.enumerate()) == before  # physics and viewer threads both ended
