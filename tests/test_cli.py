@@ -207,3 +207,22 @@ def test_recording_shows_no_progress_bar_off_a_terminal(monkeypatch, tmp_path):
     assert main([*argv, "--height", "24", "--quality", "draft"]) == 0
     [bar] = bars
     assert bar.disable and bar.n == 0  # captured stderr is not a terminal: nothing drawn
+
+
+def test_the_parsers_quality_choices_are_the_recorders():
+    from so101sim.recording import QUALITY_CHOICES
+
+    assert cli.QUALITY_CHOICES == QUALITY_CHOICES
+
+
+def test_building_the_parser_imports_no_mujoco_nor_numpy():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from so101sim import cli; cli.build_parser(); "
+        "print('mujoco' in sys.modules, 'numpy' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["False", "False"]

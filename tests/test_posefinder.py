@@ -139,7 +139,7 @@ def test_cli_pose_prints_each_pose_as_a_dict_and_as_toml(monkeypatch, capsys):
         made["kwargs"] = kwargs
         yield FakeViewer(m, d, sliders={8: SLIDER_POSE}, syncs=25)
 
-    monkeypatch.setattr(cli, "open_viewer", fake_open_viewer)
+    monkeypatch.setattr("so101sim.viewer.open_viewer", fake_open_viewer)
     monkeypatch.setattr(posefinder, "Pacer", _fast_pacer)
     assert cli.main(["pose"]) == 0
     assert made["kwargs"].get("show_ui") is True  # the joint sliders are shown

@@ -18,6 +18,17 @@ def test_has_display_follows_the_environment(monkeypatch):
     assert viewer.has_display()
 
 
+def test_choose_viewer_falls_back_to_headless_and_says_why(monkeypatch):
+    monkeypatch.setattr(sys, "platform", "linux")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert viewer.choose_viewer(headless=True) == viewer.ViewerChoice(use=False, note=None)
+    fallback = viewer.choose_viewer()
+    assert not fallback.use and "running headless" in fallback.note
+    monkeypatch.setenv("DISPLAY", ":0")
+    assert viewer.choose_viewer() == viewer.ViewerChoice(use=True, note=None)
+
+
 def test_no_display_is_a_clear_error(monkeypatch, sim):
     monkeypatch.setattr(sys, "platform", "linux")
     monkeypatch.delenv("DISPLAY", raising=False)

@@ -7,52 +7,47 @@ so101sim hold           hold the starting pose (the lab's first script)
 so101sim view           open the model in MuJoCo's interactive viewer
 so101sim model-path     print the folder of the shipped model
 so101sim teleop         mirror a LeRobot SO-101 leader arm on the sim in real time
+
+Nothing here decides anything: the checks, viewer or headless, and running are in the library
+(:mod:`so101sim.runplan` runs ``run`` and ``hold``). Each command imports what it needs when it
+runs, not at the top, to start fast (``so101sim --help`` imports no MuJoCo) and so that
+``--record`` can choose the OpenGL backend before MuJoCo is first imported.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib
 import logging
 import sys
-from collections.abc import Iterator, Sequence
-from contextlib import ExitStack
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Iterator, Sequence
+from typing import TYPE_CHECKING, Any
 
 from . import __version__
 from .errors import So101SimError
-from .model import arm_units, load_model, model_dir
-from .motion import (
-    Hold,
-    RunResult,
-    Segment,
-    SegmentResult,
-    run_motion,
-    validate_segments,
-)
-from .motionfile import lab_motion_path, load_motion
-from .simulation import Pacer, Simulation, ViewerObserver
-from .trajectory import check_limited_moves
-from .units import GRIPPER, STARTING_POSE, Pose, format_pose
 from .validation import check_duration
-from .viewer import has_display, open_viewer, view
 
 if TYPE_CHECKING:
     from tqdm import tqdm
 
+    from .motion import RunResult, Segment
     from .recording import Recorder
+    from .runplan import Outputs
+    from .simulation import SegmentResult
+    from .units import Pose
 
 SubParsers = argparse._SubParsersAction  # the object add_subparsers() returns
 
-log = logging.getLogger("so101sim")
+# recording.QUALITY_CHOICES (a test checks they agree), repeated: the parser imports no MuJoCo
+QUALITY_CHOICES = ("auto", "draft", "full")
 
 
-def _unit(name: str) -> str:
-    return "" if name == GRIPPER else "°"
-
-
+# ---------------------------------------------------------------------------- printing
 def format_segment(seg: SegmentResult) -> str:
     """A phase's report: target, reached pose, largest tracking error."""
+    from .units import format_pose, format_value
+
     joint, err = seg.worst_tracking_error
     status = "" if seg.completed else "  (stopped early)"
     return (
@@ -60,7 +55,7 @@ def format_segment(seg: SegmentResult) -> str:
         f"{seg.steps} steps]{status}\n"
         f"  target : {format_pose(seg.target)}\n"
         f"  reached: {format_pose(seg.reached)}\n"
-        f"  largest tracking error: {err:.3f}{_unit(joint)} ({joint})"
+        f"  largest tracking error: {format_value(joint, err, 3)} ({joint})"
     )
 
 
@@ -71,80 +66,53 @@ def print_run(result: RunResult) -> None:
         print(f"run ended early at t = {result.end_time:.3f} s (viewer closed)")
 
 
-def _add_common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--model", help="MJCF file to load instead of the shipped scene.xml")
-    p.add_argument(
-        "--headless", action="store_true", help="run without the viewer, even with a display"
+def _progress_bar(frames: int | None) -> tqdm | None:
+    """A bar on stderr counting the video's frames (None without a video)."""
+    if frames is None:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(
+        total=frames,
+        unit="frame",
+        desc="recording",
+        file=sys.stderr,
+        delay=1.0,  # shown only for renders that take more than a second
+        disable=None,  # and only on a terminal
+        leave=False,
     )
-    p.add_argument(
-        "--speed",
-        type=float,
-        default=1.0,
-        help="viewer playback speed as a multiple of real time (default 1.0)",
-    )
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="so101sim", description="A MuJoCo digital twin of the SO-101 arm."
-    )
-    parser.add_argument("--version", action="version", version=f"so101sim {__version__}")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
-    sub = parser.add_subparsers(dest="command", required=True)
-
-    p = sub.add_parser("run", help="run a motion file (default: the lab motion)")
-    _add_common(p)
-    _add_motion_args(p)
-    add_recording_options(p)
-    p.set_defaults(func=cmd_run)
-
-    p = sub.add_parser("hold", help="hold the starting (rest) pose, as the lab's first script")
-    _add_common(p)
-    p.add_argument("--duration", type=float, default=30.0, help="seconds to hold (default 30)")
-    add_recording_options(p)
-    p.set_defaults(func=cmd_hold)
-
-    p = sub.add_parser("view", help="open the model in MuJoCo's interactive viewer")
-    p.add_argument("--model", help="MJCF file to load instead of the shipped scene.xml")
-    p.set_defaults(func=cmd_view)
-
-    p = sub.add_parser("model-path", help="print the folder holding the shipped model")
-    p.set_defaults(func=cmd_model_path)
-
-    _add_pose_parser(sub)
-    _add_check_parser(sub)
-    _add_teleop_parser(sub)
-    return parser
+@contextlib.contextmanager
+def _reporting(recorder: Recorder, bar: tqdm | None) -> Iterator[None]:
+    """Close the recorder's files on the way out (also on Ctrl-C) and say what was written."""
+    interrupted = False
+    try:
+        yield
+    except KeyboardInterrupt:
+        interrupted = True
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+        written = recorder.close()
+        what = "so far " if interrupted else ""
+        for key, path in written.items():
+            extra = f" ({recorder.video.frames} frames)" if key == "video" else ""
+            print(f"wrote the {key} {what}to {path}{extra}")
 
 
-def _run_steps(
-    args: argparse.Namespace, steps: Sequence[Segment], start: Pose = STARTING_POSE
-) -> int:
-    pacer = Pacer(args.speed)  # checks --speed before anything opens
-    sim = Simulation(args.model, initial_pose=start)
-    validate_segments(sim.model, steps)  # every target and duration, before anything runs
-    recorder, bar = recorder_from_args(args, sim, sum(s.duration for s in steps))  # checks paths
-    use_viewer = not args.headless and has_display()
-    if not args.headless and not use_viewer:
-        print("no display found: running headless (use --headless to say so, xvfb-run to view)")
-    with ExitStack() as stack:
-        observers = []
-        if recorder is not None:
-            stack.enter_context(_reporting(recorder, bar))
-            observers.extend(recorder.observers)
-        if use_viewer:
-            handle = stack.enter_context(open_viewer(sim.model, sim.data))
-            observers.append(ViewerObserver(handle, pacer))
-        result = run_motion(sim.model, sim.data, steps, observers=observers)
-    print_run(result)
-    return 0
+# ---------------------------------------------------------------------------- parser
+def _parent(*flags: str, **kwargs: Any) -> argparse.ArgumentParser:
+    """A parent parser holding one option, for ``add_parser(..., parents=[...])``."""
+    p = argparse.ArgumentParser(add_help=False)
+    p.add_argument(*flags, **kwargs)
+    return p
 
 
-# ---------------------------------------------------------------------------- recording
-def add_recording_options(p: argparse.ArgumentParser) -> None:
+def _recording_parent() -> argparse.ArgumentParser:
     """The --record/--plot/--log options of ``run`` and ``hold``."""
-    from .recording import QUALITY_CHOICES
-
+    p = argparse.ArgumentParser(add_help=False)
     g = p.add_argument_group("recording (video, plot and log of the run, no screen recorder)")
     g.add_argument("--record", metavar="PATH", help="write an H.264 video of the run (.mp4)")
     g.add_argument("--plot", metavar="PATH", help="plot commanded vs measured angles (.png)")
@@ -169,125 +137,180 @@ def add_recording_options(p: argparse.ArgumentParser) -> None:
         help="draw the time and phase into the video (default: on)",
     )
     g.add_argument("--force", action="store_true", help="overwrite existing output files")
+    return p
 
 
-def recorder_from_args(
-    args: argparse.Namespace, sim: Simulation, duration: float
-) -> tuple[Recorder | None, tqdm | None]:
-    """``(recorder, progress_bar)`` for the options (``(None, None)`` if no output was asked
-    for). Checks every path and setting before anything runs."""
-    if not (args.record or args.plot or args.log):
-        return None, None
-    from tqdm import tqdm
+def _command(
+    sub: SubParsers,
+    name: str,
+    func: Callable[[argparse.Namespace], int],
+    summary: str,
+    *parents: argparse.ArgumentParser,
+) -> argparse.ArgumentParser:
+    """Add the subcommand ``name``, run by ``func``, with the options of ``parents``."""
+    p = sub.add_parser(name, help=summary, parents=list(parents))
+    p.set_defaults(func=func)
+    return p
 
-    from .recording import Recorder, VideoSettings, video_frames
 
-    settings = VideoSettings(
-        width=args.width,
-        height=args.height,
-        fps=args.fps,
-        camera=args.camera,
-        quality=args.quality,
-        caption=args.caption,
-    ).validated()
-    bar = None
-    if args.record:
-        bar = tqdm(
-            total=video_frames(duration, settings.fps),
-            unit="frame",
-            desc="recording",
-            file=sys.stderr,
-            delay=1.0,  # shown only for renders that take more than a second
-            disable=None,  # and only on a terminal
-            leave=False,
-        )
-    recorder = Recorder(
-        sim,
-        video=args.record,
-        plot=args.plot,
-        log=args.log,
-        settings=settings,
-        force=args.force,
-        progress=bar.update if bar is not None else None,
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="so101sim", description="A MuJoCo digital twin of the SO-101 arm."
     )
-    return recorder, bar
+    parser.add_argument("--version", action="version", version=f"so101sim {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
+    sub = parser.add_subparsers(dest="command", required=True)
+    # Options several commands share, each declared once.
+    model = _parent("--model", help="MJCF file to load instead of the shipped scene.xml")
+    headless = _parent(
+        "--headless", action="store_true", help="run without the viewer, even with a display"
+    )
+    speed = _parent(
+        "--speed",
+        type=float,
+        default=1.0,
+        help="viewer playback speed as a multiple of real time (default 1.0)",
+    )
+    strict = _parent(
+        "--strict",
+        action="store_true",
+        help="refuse 'limited' moves shorter than the joint limits allow (default: stretch them)",
+    )
+    recording = _recording_parent()
+
+    summary = "run a motion file (default: the lab motion)"
+    p = _command(sub, "run", cmd_run, summary, model, headless, speed, strict, recording)
+    p.add_argument(
+        "motion",
+        nargs="?",
+        help="a TOML motion file (default: the shipped lab motion, rest -> zeros -> rest)",
+    )
+    summary = "hold the starting (rest) pose, as the lab's first script"
+    p = _command(sub, "hold", cmd_hold, summary, model, headless, speed, recording)
+    p.add_argument("--duration", type=float, default=30.0, help="seconds to hold (default 30)")
+    _command(sub, "view", cmd_view, "open the model in MuJoCo's interactive viewer", model)
+    _command(sub, "model-path", cmd_model_path, "print the folder holding the shipped model")
+    summary = "pose the arm in the viewer; prints each pose as a Python dict and as TOML"
+    _command(sub, "pose", cmd_pose, summary, model)
+    summary = "simulate a motion file headless and judge it before hardware: PASS/FAIL"
+    _add_check_options(_command(sub, "check", cmd_check, summary, model, strict))
+    summary = "mirror a LeRobot SO-101 leader arm on the sim in real time (Ctrl-C stops)"
+    _add_teleop_options(_command(sub, "teleop", cmd_teleop, summary, model, headless))
+    return parser
 
 
-@contextlib.contextmanager
-def _reporting(recorder: Recorder, bar: tqdm | None) -> Iterator[Recorder]:
-    """Close the recorder's files on the way out (also on Ctrl-C) and say what was written."""
-    interrupted = False
-    try:
-        yield recorder
-    except KeyboardInterrupt:
-        interrupted = True
-        raise
-    finally:
-        if bar is not None:
-            bar.close()
-        written = recorder.close()
-        what = "so far " if interrupted else ""
-        for key, path in written.items():
-            extra = f" ({recorder.video.frames} frames)" if key == "video" else ""
-            print(f"wrote the {key} {what}to {path}{extra}")
+_THRESHOLD_OPTIONS = (  # check's thresholds: (flag, default, help)
+    ("--max-effort", 0.9, "effort (fraction of the actuator's force limit) counted as saturated"),
+    ("--max-saturation", 0.03, "seconds the effort may stay above --max-effort"),
+    (
+        "--max-tracking-error",
+        5.0,
+        "largest allowed |commanded - measured|, degrees (gripper: 0-100 units)",
+    ),
+    ("--limit-margin", 1.0, "closest a body joint may come to a limit, degrees"),
+)
+
+
+def _add_check_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("motion", help="the TOML motion file to check")
+    p.add_argument("--json", action="store_true", help="print the report as JSON")
+    for flag, default, text in _THRESHOLD_OPTIONS:
+        p.add_argument(flag, type=float, default=default, help=f"{text} (default {default:g})")
+
+
+def _add_teleop_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--port", required=True, help="leader arm's serial port, e.g. /dev/ttyACM0")
+    p.add_argument(
+        "--calibration",
+        help="LeRobot calibration JSON of the leader (default: LeRobot's file for --id if any)",
+    )
+    p.add_argument("--id", help="leader id whose LeRobot calibration file to use")
+    p.add_argument("--fps", type=float, default=60.0, help="ticks per second (default 60)")
+    p.add_argument("--duration", type=float, help="stop after this many seconds (default: never)")
+
+
+# ---------------------------------------------------------------------------- run and hold
+def _prepare_rendering(args: argparse.Namespace) -> None:
+    """With --record, choose MuJoCo's OpenGL backend (EGL or OSMesa without a display) before
+    MuJoCo is first imported: importing :mod:`so101sim.gl` makes the choice."""
+    if args.record:
+        importlib.import_module(".gl", __package__)
+
+
+def _outputs(args: argparse.Namespace) -> Outputs:
+    from .recording import VideoSettings  # imported here: it imports MuJoCo
+    from .runplan import Outputs
+
+    fields = ("width", "height", "fps", "camera", "quality", "caption")
+    settings = VideoSettings(**{name: getattr(args, name) for name in fields})
+    return Outputs(args.record, args.plot, args.log, settings, force=args.force)
+
+
+def _run(
+    args: argparse.Namespace, segments: Sequence[Segment], start: Pose, strict: bool = False
+) -> int:
+    from .runplan import prepare_run  # imported here: it imports MuJoCo
+
+    run = prepare_run(  # checks every setting before anything opens or moves
+        segments,
+        start=start,
+        model=args.model,
+        speed=args.speed,
+        headless=args.headless,
+        strict=strict,
+        outputs=_outputs(args),
+    )
+    if run.viewer.note:
+        print(run.viewer.note)
+    bar = _progress_bar(run.video_frames)
+    with _reporting(run.recorder, bar) if run.recorder else contextlib.nullcontext():
+        result = run.execute(progress=bar.update if bar is not None else None)
+    print_run(result)
+    return 0
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    _prepare_rendering(args)
+    from .motionfile import lab_motion_path, load_motion  # imported here: they import MuJoCo
+
     motion = load_motion(args.motion if args.motion else lab_motion_path())
-    if args.strict:
-        m = load_model(args.model)
-        units = arm_units(m)
-        start = units.pose_to_array(motion.start)
-        check_limited_moves(start, motion.steps, m.opt.timestep, units=units, strict=True)
-    return _run_steps(args, motion.steps, motion.start)
+    return _run(args, motion.steps, motion.start, strict=args.strict)
 
 
 def cmd_hold(args: argparse.Namespace) -> int:
     duration = check_duration(args.duration, "hold duration")
+    _prepare_rendering(args)
+    from .motion import Hold  # imported here: it imports MuJoCo
+    from .units import STARTING_POSE, format_pose
+
     print(f"holding the starting pose: {format_pose(STARTING_POSE)}")
-    return _run_steps(args, (Hold(duration, phase="hold"),))
+    return _run(args, (Hold(duration, phase="hold"),), STARTING_POSE)
 
 
+# ---------------------------------------------------------------------------- other commands
 def cmd_view(args: argparse.Namespace) -> int:
+    from .simulation import Simulation  # imported here: they import MuJoCo
+    from .viewer import view
+
     sim = Simulation(args.model)
     view(sim.model, sim.data)
     return 0
 
 
 def cmd_model_path(args: argparse.Namespace) -> int:
+    from .model import model_dir  # imported here: it imports MuJoCo
+
     print(model_dir())
     return 0
 
 
-# ---------------------------------------------------------------------------- motion files
-def _add_motion_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "motion",
-        nargs="?",
-        help="a TOML motion file (default: the shipped lab motion, rest -> zeros -> rest)",
-    )
-    p.add_argument(
-        "--strict",
-        action="store_true",
-        help="refuse 'limited' moves shorter than the joint limits allow (default: stretch them)",
-    )
-
-
-# ---------------------------------------------------------------------------- pose finder
-def _add_pose_parser(sub: SubParsers) -> None:
-    p = sub.add_parser(
-        "pose", help="pose the arm in the viewer; prints each pose as a Python dict and as TOML"
-    )
-    p.add_argument("--model", help="MJCF file to load instead of the shipped scene.xml")
-    p.set_defaults(func=cmd_pose)
-
-
 def cmd_pose(args: argparse.Namespace) -> int:
+    from . import viewer  # imported here: they import MuJoCo
     from .posefinder import format_python, format_toml, pose_scene, watch_poses
 
     m, d = pose_scene(args.model)
     # Open the viewer first: without a display its error is all the user sees.
-    with open_viewer(m, d, show_ui=True) as handle:
+    with viewer.open_viewer(m, d, show_ui=True) as handle:
         print(
             "Move the joint sliders (right panel, 'Joint'), or double-click a part and "
             "Ctrl+right-drag it. Each pose the arm is left in is printed below; close the "
@@ -304,57 +327,14 @@ def cmd_pose(args: argparse.Namespace) -> int:
     return 0
 
 
-# ---------------------------------------------------------------------------- preflight
-def _add_check_parser(sub: SubParsers) -> None:
-    p = sub.add_parser(
-        "check", help="simulate a motion file headless and judge it before hardware: PASS/FAIL"
-    )
-    p.add_argument("motion", help="the TOML motion file to check")
-    p.add_argument("--model", help="MJCF file to load instead of the shipped scene.xml")
-    p.add_argument("--json", action="store_true", help="print the report as JSON")
-    p.add_argument(
-        "--max-effort",
-        type=float,
-        default=0.9,
-        help="effort (fraction of the actuator's force limit) counted as saturated (default 0.9)",
-    )
-    p.add_argument(
-        "--max-saturation",
-        type=float,
-        default=0.03,
-        help="seconds the effort may stay above --max-effort (default 0.03)",
-    )
-    p.add_argument(
-        "--max-tracking-error",
-        type=float,
-        default=5.0,
-        help="largest allowed |commanded - measured|, degrees (gripper: 0-100 units) (default 5)",
-    )
-    p.add_argument(
-        "--limit-margin",
-        type=float,
-        default=1.0,
-        help="closest a body joint may come to a limit, degrees (default 1)",
-    )
-    p.add_argument(
-        "--strict",
-        action="store_true",
-        help="refuse 'limited' moves shorter than the joint limits allow (default: stretch them)",
-    )
-    p.set_defaults(func=cmd_check)
-
-
 def cmd_check(args: argparse.Namespace) -> int:
     import json
 
-    from .preflight import Thresholds, check_motion_file, format_report
+    from .preflight import Thresholds, check_motion_file, format_report  # imports MuJoCo
 
-    thresholds = Thresholds(  # a bad threshold is a SettingError: main() reports it
-        max_effort=args.max_effort,
-        max_saturation=args.max_saturation,
-        max_tracking_error=args.max_tracking_error,
-        limit_margin=args.limit_margin,
-    )
+    names = ("max_effort", "max_saturation", "max_tracking_error", "limit_margin")
+    # a bad threshold is a SettingError: main() reports it
+    thresholds = Thresholds(**{name: getattr(args, name) for name in names})
     report = check_motion_file(
         args.motion, model=args.model, thresholds=thresholds, strict=args.strict
     )
@@ -362,75 +342,38 @@ def cmd_check(args: argparse.Namespace) -> int:
     return 0 if report.passed else 1
 
 
-def _add_teleop_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "teleop", help="mirror a LeRobot SO-101 leader arm on the sim in real time (Ctrl-C stops)"
-    )
-    p.add_argument("--port", required=True, help="leader arm's serial port, e.g. /dev/ttyACM0")
-    p.add_argument(
-        "--calibration",
-        help="LeRobot calibration JSON of the leader (default: LeRobot's file for --id if any)",
-    )
-    p.add_argument("--id", help="leader id whose LeRobot calibration file to use")
-    p.add_argument("--fps", type=float, default=60.0, help="ticks per second (default 60)")
-    p.add_argument("--duration", type=float, help="stop after this many seconds (default: never)")
-    p.add_argument("--model", help="MJCF file to load instead of the shipped scene.xml")
-    p.add_argument(
-        "--headless", action="store_true", help="run without the viewer, even with a display"
-    )
-    p.set_defaults(func=cmd_teleop)
-
-
 def cmd_teleop(args: argparse.Namespace) -> int:
-    from . import teleop
-    from .robot import SO101SimFollower, SO101SimFollowerConfig
+    from . import robot, teleop  # imported here: they import MuJoCo
     from .robot_helpers import check_fps
-    from .validation import check_duration
+    from .viewer import choose_viewer
 
     # Check the numbers before opening anything (port, robot, viewer).
     fps = check_fps(args.fps)
     duration = check_duration(args.duration) if args.duration is not None else None
-    if args.calibration:
-        calibration = teleop.load_calibration(args.calibration)
-        print(f"calibration: {args.calibration}")
-    elif args.id and teleop.lerobot_calibration_path(args.id).is_file():
-        path = teleop.lerobot_calibration_path(args.id)
-        calibration = teleop.load_calibration(path)
-        print(f"calibration: {path}")
-    else:
-        calibration = teleop.default_calibration()
-        print(
-            "no calibration file: assuming LeRobot's calibration (middle = 2047 ticks) and "
-            "guessing the gripper's range; pass --calibration for exact values"
-        )
-    use_viewer = not args.headless and has_display()
-    if not args.headless and not use_viewer:
-        print("no display found: running headless (use --headless to say so, xvfb-run to view)")
-    robot = SO101SimFollower(
-        SO101SimFollowerConfig(id="teleop", model=args.model, viewer=use_viewer)
-    )
-    bus = teleop.FeetechLeaderBus(args.port, calibration=calibration)
-    result = None
+    calibration = teleop.find_calibration(args.calibration, args.id)
+    print(calibration.note)
+    viewer = choose_viewer(args.headless)
+    if viewer.note:
+        print(viewer.note)
+    config = robot.SO101SimFollowerConfig(id="teleop", model=args.model, viewer=viewer.use)
+    follower = robot.SO101SimFollower(config)
+    bus = teleop.FeetechLeaderBus(args.port, calibration=calibration.motors)
     try:
-        with robot:
+        with follower:
             print(f"mirroring the leader on {args.port} at {args.fps:g} Hz; Ctrl-C to stop")
+            stop = (lambda: not follower.viewer_open) if viewer.use else None
             result = teleop.teleoperate(
-                robot,
-                bus,
-                calibration,
-                fps=fps,
-                duration=duration,
-                should_stop=(lambda: not robot.viewer_open) if use_viewer else None,
+                follower, bus, calibration.motors, fps=fps, duration=duration, should_stop=stop
             )
     except KeyboardInterrupt:
         print("stopped")
+        return 0
     finally:
         bus.close()
-    if result is not None:
-        print(
-            f"{result.ticks} ticks in {result.duration:.2f} s "
-            f"({result.late_ticks} slower than {args.fps:g} Hz)"
-        )
+    print(
+        f"{result.ticks} ticks in {result.duration:.2f} s "
+        f"({result.late_ticks} slower than {args.fps:g} Hz)"
+    )
     return 0
 
 

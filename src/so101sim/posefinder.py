@@ -25,7 +25,7 @@ import numpy as np
 
 from .model import arm_index, arm_units, load_model
 from .simulation import Pacer, measured_radians
-from .units import GRIPPER, JOINT_NAMES, STARTING_POSE, ArmUnits, Pose
+from .units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose
 
 
 @dataclass(frozen=True)
@@ -137,11 +137,6 @@ def format_python(pose: Pose) -> str:
 def format_toml(name: str, pose: Pose) -> str:
     """``name = { shoulder_pan = 0.0, ... }``: paste under ``[poses]`` in a motion file."""
     return f"{name} = {{ " + ", ".join(f"{k} = {float(v)!r}" for k, v in pose.items()) + " }"
-
-
-def describe(pose: Pose) -> str:
-    """One line for people: ``shoulder_pan 0.0°, ..., gripper 0.0``."""
-    return ", ".join(f"{k} {v:g}{'' if k == GRIPPER else '°'}" for k, v in pose.items())
 
 
 __all__ = [

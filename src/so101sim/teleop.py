@@ -422,3 +422,43 @@ __all__ = [
     "teleoperate",
     "ticks_to_pose",
 ]
+
+
+# ---------------------------------------------------------------------------- finding a calibration
+@dataclass(frozen=True)
+class FoundCalibration:
+    """The leader calibration to use and where it came from (``source`` None: no file was
+    found, so :func:`default_calibration` is used)."""
+
+    motors: dict[str, MotorCalibration]
+    source: str | Path | None
+
+    @property
+    def note(self) -> str:
+        """For the user: the file used, or that there is none and what is assumed instead."""
+        if self.source is not None:
+            return f"calibration: {self.source}"
+        return (
+            "no calibration file: assuming LeRobot's calibration (middle = 2047 ticks) and "
+            "guessing the gripper's range; pass --calibration for exact values"
+        )
+
+
+def find_calibration(
+    path: str | Path | None = None, leader_id: str | None = None
+) -> FoundCalibration:
+    """The calibration at ``path``; else LeRobot's file for ``leader_id`` if it exists; else
+    :func:`default_calibration` (LeRobot's middle = 2047 ticks, the gripper's range guessed).
+
+    Raises:
+        CalibrationError: the file at ``path`` (or LeRobot's file) cannot be read or is invalid.
+    """
+    if path:
+        return FoundCalibration(load_calibration(path), path)
+    if leader_id and lerobot_calibration_path(leader_id).is_file():
+        found = lerobot_calibration_path(leader_id)
+        return FoundCalibration(load_calibration(found), found)
+    return FoundCalibration(default_calibration(), None)
+
+
+__all__ += ["FoundCalibration", "find_calibration"]

@@ -3,6 +3,7 @@
 MuJoCo's passive viewer (``mujoco.viewer.launch_passive``) shows the simulation while our code
 steps it; :class:`so101sim.simulation.ViewerObserver` syncs it and paces it to the wall clock.
 It needs a display; on macOS it also needs the script to run under ``mjpython``.
+:func:`choose_viewer` decides, before anything opens, whether a run shows the viewer.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import os
 import sys
 import threading
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Any
 
 import mujoco
@@ -41,6 +43,28 @@ def on_macos_without_mjpython() -> bool:
     return "mjpython" not in os.path.basename(sys.executable).lower() and not os.environ.get(
         "MJPYTHON_BIN"
     )
+
+
+NO_DISPLAY_NOTE = "no display found: running headless (use --headless to say so, xvfb-run to view)"
+
+
+@dataclass(frozen=True)
+class ViewerChoice:
+    """Whether a run opens the viewer; ``note`` says why not when one was wanted (for the user),
+    and is None otherwise."""
+
+    use: bool
+    note: str | None = None
+
+
+def choose_viewer(headless: bool = False) -> ViewerChoice:
+    """Viewer or headless: the viewer unless ``headless`` was asked for or there is no display;
+    without a display the run goes on headless, and the choice's ``note`` says so."""
+    if headless:
+        return ViewerChoice(use=False)
+    if has_display():
+        return ViewerChoice(use=True)
+    return ViewerChoice(use=False, note=NO_DISPLAY_NOTE)
 
 
 MACOS_MESSAGE = (
