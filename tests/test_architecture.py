@@ -25,7 +25,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("units", ("units",)),
     ("model", ("model",)),
     ("planning", ("profiles", "trajectory", "kinematics", "kinematics_*")),
-    ("simulation", ("simulation",)),
+    ("simulation", ("simulation", "stepping")),
     ("motion", ("motion", "motionfile", "motionfile_*")),
     (
         "outputs",

@@ -208,7 +208,7 @@ def test_a_target_written_to_ctrl_directly_is_honoured(sim):
 def test_nan_state_is_reported_even_without_a_mujoco_warning(sim):
     import mujoco
 
-    from so101sim.simulation import _STATE_SPEC, _check_divergence
+    from so101sim.stepping import _STATE_SPEC, _check_divergence
 
     s0 = np.empty(mujoco.mj_stateSize(sim.model, _STATE_SPEC))
     mujoco.mj_getState(sim.model, sim.data, s0, _STATE_SPEC)
