@@ -52,6 +52,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
             "robot.*",
             "teleop",
             "teleop.*",
+            "teleop_*",
             "envs",
             "envs.*",
             "runplan",

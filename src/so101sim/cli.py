@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import importlib
 import logging
 import sys
 from collections.abc import Callable, Iterator, Sequence
@@ -232,9 +231,11 @@ def _add_teleop_options(p: argparse.ArgumentParser) -> None:
 # ---------------------------------------------------------------------------- run and hold
 def _prepare_rendering(args: argparse.Namespace) -> None:
     """With --record, choose MuJoCo's OpenGL backend (EGL or OSMesa without a display) before
-    MuJoCo is first imported: importing :mod:`so101sim.gl` makes the choice."""
+    MuJoCo is first imported."""
     if args.record:
-        importlib.import_module(".gl", __package__)
+        from .gl import prepare_for_rendering  # imported here: only rendering commands need it
+
+        prepare_for_rendering()
 
 
 def _outputs(args: argparse.Namespace) -> Outputs:

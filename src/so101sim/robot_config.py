@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from .errors import JointNameError, RobotConfigError, So101SimError
-from .simulation import MAX_SPEED, MIN_SPEED
+from .stepping import MAX_SPEED, MIN_SPEED
 from .units import JOINT_NAMES, STARTING_POSE, normalize_joint_name, parse_pose
 from .validation import (
     MAX_DURATION_S,
@@ -117,7 +117,7 @@ class SO101SimFollowerConfig:
     :data:`~so101sim.units.STARTING_POSE`'s value)."""
     speed: float = 1.0
     """Real-time mode: simulated seconds per wall-clock second (from
-    :data:`~so101sim.simulation.MIN_SPEED` to :data:`~so101sim.simulation.MAX_SPEED`)."""
+    :data:`~so101sim.stepping.MIN_SPEED` to :data:`~so101sim.stepping.MAX_SPEED`)."""
     lockstep_action_seconds: float = 0.02
     """Lockstep mode: simulated seconds each ``send_action`` advances (0.02: a 50 Hz loop)."""
     lockstep_observation_seconds: float = 0.0
