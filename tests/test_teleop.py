@@ -369,3 +369,24 @@ def test_missing_sdk_says_how_to_install_it(monkeypatch):
     monkeypatch.setitem(sys.modules, "scservo_sdk", None)
     with pytest.raises(LeaderError, match=r"so101sim\[leader\]"):
         FeetechLeaderBus("/dev/ttyACM0")
+
+
+def test_teleoperation_clips_to_the_limits_of_the_followers_own_model(tmp_path, caplog):
+    from so101sim.model import model_dir
+
+    # a copy of the shipped model whose shoulder_pan turns only ±30°
+    src = (model_dir() / "so101_new_calib.xml").read_text()
+    narrow = src.replace(
+        'name="shoulder_pan" type="hinge" range="-1.9198621771937616 1.9198621771937634"',
+        'name="shoulder_pan" type="hinge" range="-0.5235987755982988 0.5235987755982988"',
+    )
+    assert narrow != src
+    (tmp_path / "so101_new_calib.xml").write_text(narrow)
+    (tmp_path / "scene.xml").write_text((model_dir() / "scene.xml").read_text())
+    (tmp_path / "assets").symlink_to(model_dir() / "assets")
+    robot = SO101SimFollower(SO101SimFollowerConfig(mode="lockstep", model=tmp_path / "scene.xml"))
+    bus = FakeLeaderBus([{n: 4095 for n in JOINT_NAMES}])
+    with robot, caplog.at_level("WARNING"):
+        result = teleoperate(robot, bus, default_calibration(), max_ticks=3)
+    assert result.last_action["shoulder_pan.pos"] == pytest.approx(30.0, abs=1e-3)
+    assert "clipped" not in caplog.text  # the loop clipped to the right limits, quietly

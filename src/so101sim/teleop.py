@@ -49,6 +49,7 @@ from .teleop_calibration import (
 from .units import (
     JOINT_NAMES,
     LEROBOT_SUFFIX,
+    ArmUnits,
 )
 from .validation import check_count, check_duration
 
@@ -215,6 +216,12 @@ class TeleopResult:
     last_action: dict[str, float]
 
 
+def _follower_units(robot: Any) -> ArmUnits:
+    """The units of the follower's own model when it is simulated, else the shipped model's."""
+    units = getattr(getattr(robot, "simulation", None), "units", None)
+    return units if isinstance(units, ArmUnits) else default_units()
+
+
 def teleoperate(
     robot: Any,
     leader: LeaderBus,
@@ -231,7 +238,9 @@ def teleoperate(
     next tick (absolute deadlines on the robot's clock).
 
     Leader values beyond the follower's joint limits are clipped to them here (silently, at
-    debug level), so the follower does not warn 60 times a second. Stops after ``duration``
+    debug level), so the follower does not warn 60 times a second: the limits of the
+    follower's own model (``robot.simulation.units``, as with ``so101sim teleop --model``),
+    else of the shipped model. Stops after ``duration``
     seconds, ``max_ticks`` ticks, or when ``should_stop()`` is true; otherwise runs until
     interrupted (Ctrl-C).
 
@@ -245,7 +254,7 @@ def teleoperate(
         max_ticks = check_count(max_ticks, "max_ticks")
     calibration = calibration if calibration is not None else default_calibration()
     clock = clock if clock is not None else clock_for(robot)
-    limits = default_units().limits
+    limits = _follower_units(robot).limits
     period = 1.0 / fps
     t0 = clock.now()
     ticks = late = 0
