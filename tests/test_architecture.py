@@ -39,6 +39,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
             "posefinder",
             "framing",
             "scenes",
+            "cameras",
             "scenes.*",
             "cameras",
         ),

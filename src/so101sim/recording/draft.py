@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 
 from ..model import load_model, loaded_models, model_dir, model_source
+from ..scenes import scene_builder
 from .settings import check_quality
 
 log = logging.getLogger(__name__)
@@ -43,6 +44,9 @@ _DRAWN_FIELDS = (
 _fingerprints: weakref.WeakKeyDictionary[mujoco.MjModel, str] = weakref.WeakKeyDictionary()
 _render_lock = threading.Lock()
 _draft_cache: dict[tuple[str, int], mujoco.MjModel | None] = {}
+_scene_drafts: weakref.WeakKeyDictionary[mujoco.MjModel, mujoco.MjModel | None] = (
+    weakref.WeakKeyDictionary()
+)
 
 
 def draft_mesh_dir() -> Path:
@@ -106,7 +110,10 @@ def _delete_unused_meshes(spec: mujoco.MjSpec) -> None:
 def _compile_draft(source: Path) -> mujoco.MjModel | None:
     """Compile ``source`` for drawing only: visual mesh geoms use the shipped simplified meshes
     whose originals match (by SHA-256), collision geoms are left out. None if nothing matches."""
-    spec = mujoco.MjSpec.from_file(str(source))
+    return _compile_draft_spec(mujoco.MjSpec.from_file(str(source)))
+
+
+def _compile_draft_spec(spec: mujoco.MjSpec) -> mujoco.MjModel | None:
     swapped = _add_draft_meshes(spec)
     if not swapped:
         return None
@@ -205,6 +212,14 @@ def draft_source(model: mujoco.MjModel) -> tuple[Path | None, str]:
 def _draft_model(model: mujoco.MjModel) -> mujoco.MjModel:
     """The draft version of ``model`` with the same bodies and joints, else ``model`` itself
     (with a logged warning saying why)."""
+    builder = scene_builder(model)  # a scene built with MjSpec (cameras, objects): rebuild it
+    if builder is not None:
+        with _render_lock:
+            if model not in _scene_drafts:
+                _scene_drafts[model] = _compile_draft_spec(builder())
+            draft = _scene_drafts[model]
+        if draft is not None and (draft.nq, draft.nbody) == (model.nq, model.nbody):
+            return draft
     source, why = draft_source(model)
     if source is not None:
         draft = _cached_draft(source)

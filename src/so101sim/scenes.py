@@ -1,0 +1,210 @@
+"""Scenes built at load time: the shipped SO-101 model plus cameras (and, later, tables and
+objects), added with ``mujoco.MjSpec`` so the vendored files are never edited.
+
+A :class:`CameraSpec` says where a simulated camera sits (metres, in the world or on the
+gripper), where it looks and its field of view; :data:`PRESET_CAMERAS` has ``front`` (in front
+of the arm, looking back at it and the space it works in, like the usual LeRobot table set-up)
+and ``wrist`` (on the gripper, looking along the jaws at what they grasp, like the common SO-101
+wrist-camera mount). :func:`build_model` compiles the scene; the ``draft`` render preset finds
+the same scene with simplified meshes (:func:`scene_builder`).
+
+Frames come from :class:`so101sim.recording.FrameRenderer` with ``camera=<name>``; the
+robot's cameras (:class:`so101sim.robot.SO101SimFollower`) are built on it.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import weakref
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from .errors import CameraError, ModelError
+from .model import arm_index, scene_path
+from .validation import check_count, check_range
+
+MAX_CAMERA_PIXELS = 4096
+"""The largest camera width or height accepted, in pixels."""
+
+CAMERA_BODIES = ("world", "gripper")
+"""Where a camera can be mounted: fixed in the world, or on the gripper (moves with it)."""
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """A simulated camera: ``pos`` (metres) in the frame of ``body`` ("world" or "gripper"),
+    looking at ``lookat`` (same frame), ``up`` the direction that is up in the picture,
+    vertical field of view ``fovy`` (degrees), and the frames it delivers (``width`` ×
+    ``height`` at ``fps``)."""
+
+    name: str
+    pos: tuple[float, float, float]
+    lookat: tuple[float, float, float]
+    body: str = "world"
+    up: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    fovy: float = 60.0
+    width: int = 640
+    height: int = 480
+    fps: float = 30.0
+
+    def validated(self) -> CameraSpec:
+        """Return self if every field is valid, else raise CameraError saying what to use."""
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise CameraError(
+                f"camera name {self.name!r} is not valid; expected a name of letters, digits "
+                "and underscores, such as 'front'"
+            )
+        if self.body not in CAMERA_BODIES:
+            raise CameraError(
+                f"camera {self.name!r}: body = {self.body!r}; expected one of "
+                f"{', '.join(CAMERA_BODIES)}"
+            )
+        for what in ("pos", "lookat", "up"):
+            v = getattr(self, what)
+            if len(v) != 3:
+                raise CameraError(f"camera {self.name!r}: {what} = {v!r}; expected 3 numbers")
+            for x in v:
+                check_range(
+                    x, f"camera {self.name!r} {what}", low=-100, high=100, error=CameraError
+                )
+        if np.linalg.norm(np.subtract(self.lookat, self.pos)) < 1e-6:
+            raise CameraError(f"camera {self.name!r} looks at its own position; move lookat")
+        check_range(self.fovy, f"camera {self.name!r} fovy", low=1, high=170, error=CameraError)
+        for what in ("width", "height"):
+            check_count(
+                getattr(self, what),
+                f"camera {self.name!r} {what}",
+                minimum=16,
+                maximum=MAX_CAMERA_PIXELS,
+                unit=" pixels",
+                error=CameraError,
+            )
+        check_range(self.fps, f"camera {self.name!r} fps", low=1, high=240, error=CameraError)
+        return self
+
+    def xyaxes(self) -> tuple[float, ...]:
+        """The camera frame's x (right) and y (up) axes in its body's frame: MuJoCo cameras
+        look along their -z axis."""
+        forward = np.subtract(self.lookat, self.pos, dtype=float)
+        forward /= np.linalg.norm(forward)
+        right = np.cross(forward, self.up)
+        if np.linalg.norm(right) < 1e-9:  # looking straight along "up": pick another up
+            right = np.cross(forward, (1.0, 0.0, 0.0))
+        right /= np.linalg.norm(right)
+        up = np.cross(right, forward)
+        return (*right.tolist(), *up.tolist())
+
+
+PRESET_CAMERAS: dict[str, CameraSpec] = {
+    "front": CameraSpec("front", pos=(0.5, 0.0, 0.42), lookat=(0.15, 0.0, 0.02), fovy=55.0),
+    "wrist": CameraSpec(
+        "wrist",
+        body="gripper",
+        pos=(0.0, -0.055, -0.03),
+        lookat=(0.0, 0.0, -0.15),
+        up=(0.0, -1.0, 0.0),
+        fovy=75.0,
+    ),
+}
+"""The cameras a config can name without saying where they are."""
+
+
+def camera(name: str, **overrides: object) -> CameraSpec:
+    """A preset camera (``front``, ``wrist``) with some fields changed, or a new camera when
+    ``pos`` and ``lookat`` are given; validated."""
+    if name in PRESET_CAMERAS:
+        return replace(PRESET_CAMERAS[name], name=name, **overrides).validated()  # type: ignore[arg-type]
+    if "pos" not in overrides or "lookat" not in overrides:
+        raise CameraError(
+            f"camera {name!r} is not a preset; give its pos and lookat (metres), or use one "
+            f"of the presets {', '.join(PRESET_CAMERAS)}"
+        )
+    return CameraSpec(name=name, **overrides).validated()  # type: ignore[arg-type]
+
+
+def _add_camera(spec: mujoco.MjSpec, cam: CameraSpec) -> None:
+    if cam.body == "world":
+        parent = spec.worldbody
+    else:
+        parent = spec.body(cam.body)
+        if parent is None:
+            raise ModelError(f"the model has no body {cam.body!r} to mount camera {cam.name!r}")
+    c = parent.add_camera()
+    c.name = cam.name
+    c.pos = list(cam.pos)
+    c.alt.type = mujoco.mjtOrientation.mjORIENTATION_XYAXES
+    c.alt.xyaxes = list(cam.xyaxes())
+    c.fovy = cam.fovy
+
+
+def scene_spec(
+    cameras: Sequence[CameraSpec] = (), model: str | Path | None = None
+) -> mujoco.MjSpec:
+    """The MjSpec of ``model`` (the shipped ``scene.xml`` by default) with ``cameras`` added."""
+    path = Path(model) if model is not None else scene_path()
+    try:
+        spec = mujoco.MjSpec.from_file(str(path))
+    except (ValueError, mujoco.FatalError) as exc:
+        raise ModelError(f"model file {str(path)!r} cannot be read: {exc}") from exc
+    names = [c.name for c in cameras]
+    dup = {n for n in names if names.count(n) > 1}
+    if dup:
+        raise CameraError(f"camera {sorted(dup)[0]!r} is given twice; camera names must differ")
+    for cam in cameras:
+        if spec.camera(cam.name) is not None:
+            raise CameraError(f"the model already has a camera {cam.name!r}; choose another name")
+        _add_camera(spec, cam.validated())
+    return spec
+
+
+_builders: weakref.WeakKeyDictionary[mujoco.MjModel, Callable[[], mujoco.MjSpec]] = (
+    weakref.WeakKeyDictionary()
+)
+_lock = threading.Lock()
+
+
+def build_model(
+    cameras: Sequence[CameraSpec] = (), model: str | Path | None = None
+) -> mujoco.MjModel:
+    """Compile the shipped scene (or ``model``) with ``cameras`` added. The draft render preset
+    finds the same scene with simplified meshes (:func:`draft_of`).
+
+    Raises:
+        ModelError, CameraError: the model cannot be read or compiled; a camera is not valid.
+    """
+    cams = tuple(c.validated() for c in cameras)
+
+    def make() -> mujoco.MjSpec:
+        return scene_spec(cams, model)
+
+    spec = make()
+    try:
+        compiled = spec.compile()
+    except (ValueError, mujoco.FatalError) as exc:
+        raise ModelError(f"the scene does not compile: {exc}") from exc
+    arm_index(compiled)  # fail now if the SO-101 joints are missing
+    with _lock:
+        _builders[compiled] = make
+    return compiled
+
+
+def scene_builder(model: mujoco.MjModel) -> Callable[[], mujoco.MjSpec] | None:
+    """The function that makes ``model``'s MjSpec again, if :func:`build_model` compiled it."""
+    with _lock:
+        return _builders.get(model)
+
+
+def camera_names(model: mujoco.MjModel) -> list[str]:
+    """The named cameras of a model."""
+    names = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_CAMERA, i) for i in range(model.ncam))
+    return [n for n in names if n]
+
+
+def fovy_to_focal(fovy: float, height: int) -> float:
+    """The focal length in pixels of a camera with vertical field of view ``fovy`` degrees."""
+    return height / (2 * math.tan(math.radians(fovy) / 2))
