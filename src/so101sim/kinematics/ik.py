@@ -79,7 +79,7 @@ class IKResult:
     position_error_mm: float
     orientation_error_deg: float  # the largest of the asked angles' errors; 0 if none asked
     iterations: int  # over all attempts
-    restarts: int  # attempts after the warm start
+    restarts: int  # attempts after the first (closed-form starts, the warm start, random poses)
     reachable: bool  # within the tolerances
 
 
