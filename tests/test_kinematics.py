@@ -28,7 +28,6 @@ from so101sim.kinematics import (
     tip_pose,
     tip_positions,
 )
-from so101sim.kinematics.core import for_model
 from so101sim.model import arm_index, arm_units, load_model
 from so101sim.units import JOINT_NAMES, STARTING_POSE, ZERO_POSE, to_lerobot
 
@@ -97,7 +96,7 @@ def test_tip_accepts_lerobot_keys_arrays_and_rejects_bad_poses():
 
 
 def test_planar_chain_read_from_the_model():
-    arm = planar_arm(for_model())
+    arm = planar_arm()
     assert arm is not None
     assert arm.upper[0] == pytest.approx(0.1160, abs=1e-4)  # shoulder -> elbow
     assert arm.fore[0] == pytest.approx(0.1350, abs=1e-4)  # elbow -> wrist

@@ -16,9 +16,10 @@ import math
 import weakref
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
-from .core import N_BODY, Kinematics
+from .core import N_BODY, Kinematics, for_model
 
 _PARALLEL = 1e-9  # how far from parallel/vertical the axes may be for the planar picture
 
@@ -63,10 +64,16 @@ class PlanarArm:
         return [_wrap(phi + math.acos(rhs / r)), _wrap(phi - math.acos(rhs / r))]
 
 
-def planar_arm(kin: Kinematics) -> PlanarArm | None:
-    """The planar description of ``kin``'s model, or None if its axes are not arranged as
-    the SO-101's (a vertical pan, three parallel horizontal pitch axes across the plane).
-    Call with ``kin.lock`` held."""
+def planar_arm(model: mujoco.MjModel | None = None) -> PlanarArm | None:
+    """The chain's numbers (link lengths, angles, axes) read from ``model`` (the shipped one
+    if None), or None if its axes are not arranged as the SO-101's (a vertical pan, three
+    parallel horizontal pitch axes across the plane)."""
+    kin = for_model(model)
+    with kin.lock:
+        return planar_arm_of(kin)
+
+
+def _read_planar_arm(kin: Kinematics) -> PlanarArm | None:
     axes = kin.zero_frame_axes()
     (_, pan_p, pan_a), (_, s, sa), (_, e, ea), (_, w, wa), _roll = axes
     if abs(abs(pan_a[2]) - 1.0) > _PARALLEL:
@@ -99,7 +106,7 @@ _arms: weakref.WeakKeyDictionary[Kinematics, PlanarArm | None] = weakref.WeakKey
 def planar_arm_of(kin: Kinematics) -> PlanarArm | None:
     """:func:`planar_arm` of ``kin``, computed once; call with ``kin.lock`` held."""
     if kin not in _arms:
-        _arms[kin] = planar_arm(kin)
+        _arms[kin] = _read_planar_arm(kin)
     return _arms[kin]
 
 
