@@ -24,7 +24,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("errors/validation", ("errors", "validation", "gl", "simclock")),
     ("units", ("units",)),
     ("model", ("model",)),
-    ("planning", ("profiles", "trajectory", "kinematics", "kinematics_*")),
+    ("planning", ("profiles", "trajectory", "kinematics", "kinematics.*")),
     ("simulation", ("simulation", "stepping")),
     ("motion", ("motion", "motionfile", "motionfile_*")),
     (
