@@ -350,3 +350,47 @@ def test_a_viewer_without_sync_is_refused_before_anything_moves(sim):
         with pytest.raises(SettingError, match="sync"):
             sim.move_to(ZERO_POSE, 0.5, viewer=bad)
     assert sim.time == 0.0
+
+
+def test_tip_moves_in_a_straight_line_and_report_the_tracking():
+    from so101sim.kinematics import line_deviation
+
+    sim = Simulation(initial_pose=ZERO_POSE)
+    start = sim.tip().position
+    goal = (0.25, 0.05, 0.10)
+    r = sim.move_to(tip=goal, pitch=-60, duration=2.0, profile="minimum_jerk", trace=True)
+    commanded = line_deviation(r.commanded, start, goal, model=sim.model)
+    measured = line_deviation(r.measured, start, goal, model=sim.model)
+    assert commanded.max_mm <= 2.0  # the commanded tip stays on the line
+    assert measured.max_mm < 10.0  # and the arm follows it closely (reported by check)
+    assert np.linalg.norm(sim.tip().position - goal) < 0.005
+    assert r.steps == 1000 and sim.commanded()["gripper"] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_a_tip_out_of_reach_raises_before_anything_moves():
+    from so101sim.errors import UnreachableError
+
+    sim = Simulation()
+    with pytest.raises(UnreachableError, match="mm"):
+        sim.move_to(tip=(0.9, 0.0, 0.1), duration=2.0)
+    with pytest.raises(UnreachableError):
+        sim.move_to(tip=(0.9, 0.0, 0.1), duration=2.0, path="joint")
+    assert sim.time == 0.0
+
+
+def test_a_joint_space_tip_move_ends_at_the_tip_and_paths_are_checked():
+    from so101sim.errors import DurationError, SettingError
+
+    sim = Simulation()
+    sim.move_to(tip=(0.2, -0.1, 0.05), pitch=-90, duration=2.0, path="joint", profile="limited")
+    sim.hold(0.5)
+    assert np.linalg.norm(sim.tip().position - (0.2, -0.1, 0.05)) < 0.005
+    assert sim.tip().pitch == pytest.approx(-90, abs=2.0)
+    with pytest.raises(SettingError, match="valid paths are line, joint"):
+        sim.move_to(tip=(0.2, 0, 0.1), duration=1.0, path="arc")
+    with pytest.raises(SettingError, match="straight-line"):
+        sim.move_to(tip=(0.2, 0, 0.1), duration=1.0, profile="limited")
+    with pytest.raises(DurationError, match="missing"):
+        sim.move_to(tip=(0.2, 0, 0.1))
+    with pytest.raises(SettingError, match="target pose or tip"):
+        sim.move_to(duration=1.0)

@@ -80,6 +80,33 @@ def _minimum_jerk(s: np.ndarray) -> np.ndarray:
     return s**3 * (10.0 - 15.0 * s + 6.0 * s**2)
 
 
+SHAPES: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "linear": _linear,
+    "minimum_jerk": _minimum_jerk,
+}
+"""The profiles that are a shape ``s(t)`` from 0 to 1 (the same for every joint): those a
+straight-line move of the tip can follow."""
+
+
+def fractions(profile: str | Profile, n: int) -> np.ndarray:
+    """How far along a move each of its ``n`` steps is (0..1, the last exactly 1), for a
+    profile of :data:`SHAPES`: what a straight-line tip move follows.
+
+    Raises:
+        SettingError: the profile is not one of :data:`SHAPES` (``limited`` plans joint by
+            joint, which a straight line of the tip cannot follow).
+    """
+    shape = SHAPES.get(profile) if isinstance(profile, str) else None
+    if shape is None:
+        raise SettingError(
+            f"profile {profile!r} cannot drive a straight-line tip move; expected one of "
+            f"{', '.join(SHAPES)} (or path='joint' to use {profile!r} in joint space)"
+        )
+    s = shape(np.arange(1, n + 1) / n)
+    s[-1] = 1.0
+    return s
+
+
 PROFILES: dict[str, Profile] = {
     "linear": _shape(_linear),
     "minimum_jerk": _shape(_minimum_jerk),

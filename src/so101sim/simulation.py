@@ -26,19 +26,21 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from .errors import ModelError, SettingError
+from .errors import DurationError, ModelError, SettingError
+from .kinematics import TipPose, for_model, plan_line, solve_ik
 from .model import ArmIndex, arm_index, arm_units, load_model
 from .profiles import (
     MAX_MOVE_DURATION_S,
     Profile,
     duration_warning,
+    fractions,
     get_profile,
     plan,
     steps_for,
 )
 from .stepping import Observer, Pacer, Trace, ViewerObserver, advance, measured_radians
 from .units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose, unit_warnings
-from .validation import MAX_DURATION_S, check_count
+from .validation import MAX_DURATION_S, check_choice, check_count
 
 log = logging.getLogger(__name__)
 
@@ -340,9 +342,13 @@ class Simulation:
 
     def move_to(
         self,
-        target: Pose,
-        duration: float,
+        target: Pose | None = None,
+        duration: float | None = None,
         *,
+        tip: Sequence[float] | None = None,
+        pitch: float | None = None,
+        roll: float | None = None,
+        path: str = "line",
         viewer: Any = None,
         observers: Sequence[Observer] = (),
         profile: str | Profile = "linear",
@@ -350,16 +356,67 @@ class Simulation:
         phase: str = "move",
         trace: bool | None = None,
     ) -> SegmentResult:
-        """Move from the last commanded target to ``target`` in ``duration`` s of simulated time.
+        """Move from the last commanded target to ``target`` (a pose) in ``duration`` s of
+        simulated time; or move the gripper's tip to ``tip`` = (x, y, z) metres in the base
+        frame (x forward, y left, z up), optionally with the tool's ``pitch`` (degrees above
+        horizontal, -90 straight down) and ``roll``:
 
-        Returns a :class:`SegmentResult` (commanded and reached pose, largest tracking error per
-        joint; per-step arrays when ``trace`` is True, or None and the move is at most
-        :data:`TRACE_AUTO_STEPS` steps). Nothing moves if the target, duration or profile is
-        invalid.
+        * ``path="line"``: the tip follows a straight line (inverse kinematics at every step,
+          following the ``linear`` or ``minimum_jerk`` profile's timing); the whole line is
+          solved before anything moves, and a point out of reach raises
+          :class:`~so101sim.errors.UnreachableError`;
+        * ``path="joint"``: inverse kinematics for the end only, then a joint-space move with
+          ``profile``.
+
+        The gripper keeps its target in a tip move. Returns a :class:`SegmentResult`
+        (commanded and reached pose, largest tracking error per joint; per-step arrays when
+        ``trace`` is True, or None and the move is at most :data:`TRACE_AUTO_STEPS` steps).
+        Nothing moves if the target, duration or profile is invalid.
         """
         with self.lock:
-            start, targets = self.plan_move(target, duration, profile=profile, clip=clip)
+            if tip is not None:
+                start, targets = self.plan_tip_move(
+                    tip, duration, pitch=pitch, roll=roll, path=path, profile=profile
+                )
+            else:
+                if target is None:
+                    raise SettingError("move_to needs a target pose or tip=(x, y, z) metres")
+                start, targets = self.plan_move(target, duration, profile=profile, clip=clip)
             return self._segment("move", phase, start, targets, viewer, observers, trace)
+
+    def plan_tip_move(
+        self,
+        tip: Sequence[float],
+        duration: float | None,
+        *,
+        pitch: float | None = None,
+        roll: float | None = None,
+        path: str = "line",
+        profile: str | Profile = "linear",
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Plan a move of the tip (see :meth:`move_to`): ``(start, targets)`` in arm units.
+        Nothing moves.
+
+        Raises:
+            UnreachableError: the tip (or, for a line, some point of it) cannot be reached.
+            DurationError, SettingError: a bad duration, path or profile.
+        """
+        check_choice(path, "path", ("line", "joint"))
+        n = steps_for(_required(duration), self.timestep, maximum=MAX_MOVE_DURATION_S)
+        start = self.commanded_array()
+        if path == "joint":
+            goal = solve_ik(tip, pitch=pitch, roll=roll, initial=start, model=self.model)
+            prof = get_profile(profile, self.units)
+            return start, plan(start, goal.values, n, self.timestep, prof)
+        line = plan_line(
+            start, tip, fractions(profile, n), pitch=pitch, roll=roll, model=self.model
+        )
+        return start, line.targets
+
+    def tip(self) -> TipPose:
+        """Where the gripper's tip is now (measured): position in metres in the base frame and
+        orientation (:class:`~so101sim.kinematics.TipPose`)."""
+        return for_model(self.model).tip_array(self.pose_array())
 
     def hold(
         self,
@@ -438,6 +495,12 @@ class _ErrorTracker(Observer):
         measured = self.units.from_radians(trace.qpos)
         self.max = np.maximum(self.max, np.abs(commanded - measured).max(axis=0))
         self.last = commanded[-1]
+
+
+def _required(duration: float | None) -> float:
+    if duration is None:
+        raise DurationError("duration is missing; expected the move's length in seconds > 0")
+    return duration
 
 
 def _check_data(model: mujoco.MjModel, data: mujoco.MjData) -> None:
