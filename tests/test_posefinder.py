@@ -158,6 +158,11 @@ def test_cli_pose_prints_each_pose_as_a_dict_and_as_toml(monkeypatch, capsys):
     assert dicts[0] == pytest.approx(STARTING_POSE, abs=0.05)
     assert dicts[1] == pytest.approx(SLIDER_POSE, abs=0.05)
     assert tomls[1]["pose_2"] == dicts[1]
+    from so101sim.kinematics import tip_pose
+
+    tips = [line for line in out.splitlines() if line.startswith("tip:    ")]
+    assert len(tips) == 2  # the tip next to each joint pose
+    assert tips[0] == "tip:    " + tip_pose(dicts[0]).format()
 
 
 def test_cli_pose_without_a_display_gives_only_the_error(monkeypatch, capsys):

@@ -322,7 +322,8 @@ def cmd_pose(args: argparse.Namespace) -> int:
             print(
                 f"\n# pose {change.number} (t = {change.time:.1f} s)\n"
                 f"python: {format_python(change.pose)}\n"
-                f"toml:   {format_toml(f'pose_{change.number}', change.pose)}",
+                f"toml:   {format_toml(f'pose_{change.number}', change.pose)}"
+                + (f"\ntip:    {change.tip.format()}" if change.tip is not None else ""),
                 flush=True,
             )
     return 0

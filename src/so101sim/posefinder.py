@@ -16,13 +16,15 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import mujoco
 import numpy as np
 
+from .errors import ModelError
+from .kinematics import TipPose, for_model
 from .model import arm_index, arm_units, load_model
 from .simulation import Pacer, measured_radians
 from .units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose
@@ -35,6 +37,7 @@ class PoseChange:
     number: int
     time: float  # simulated time of the read, s
     pose: dict[str, float]  # arm units, rounded to ``digits``
+    tip: TipPose | None = None  # where the gripper's tip is (metres, base frame)
 
 
 class PoseWatcher:
@@ -122,11 +125,19 @@ def watch_poses(
             t = float(d.time)
         change = watcher.update(q, t)
         if change is not None:
-            yield change
+            yield replace(change, tip=_tip(m, change.pose))
         with viewer.lock():
             for _ in range(n):
                 mujoco.mj_step(m, d)
         pacer.wait(float(d.time))
+
+
+def _tip(m: mujoco.MjModel, pose: dict[str, float]) -> TipPose | None:
+    """The tip for ``pose``, or None for a model without the SO-101's tip and base sites."""
+    try:
+        return for_model(m).tip_array(np.array([pose[n] for n in JOINT_NAMES]))
+    except ModelError:
+        return None
 
 
 def format_python(pose: Pose) -> str:
