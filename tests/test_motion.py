@@ -6,6 +6,7 @@ import pytest
 from so101sim import LAB_MOTION, Hold, Move, run_motion
 from so101sim.errors import DurationError, JointNameError, So101SimError
 from so101sim.motion import PROFILES, SegmentResult, plan_move, steps_for
+from so101sim.simulation import Simulation
 from so101sim.units import JOINT_NAMES, STARTING_POSE, ZERO_POSE
 
 
@@ -113,3 +114,18 @@ def test_segment_result_helpers(sim):
     assert r.duration == pytest.approx(2.0)
     assert max(r.final_error.values()) < 1.0
     assert set(PROFILES) >= {"linear", "minimum_jerk"}
+
+
+def test_tip_moves_in_a_sequence_are_planned_before_the_first_one_runs(sim):
+    from so101sim.errors import UnreachableError
+    from so101sim.motion import run_segments
+
+    ok = [Move.to_tip((0.22, 0.0, 0.08), 1.0, pitch=-60), Move.to_tip((0.22, 0.08, 0.08), 1.0)]
+    r = run_segments(sim, ok)
+    assert r.completed and len(r.segments) == 2
+    assert np.linalg.norm(sim.tip().position - (0.22, 0.08, 0.08)) < 0.01
+    fresh = Simulation()
+    bad = [Move.to_tip((0.22, 0.0, 0.08), 1.0), Move.to_tip((0.9, 0.0, 0.1), 1.0)]
+    with pytest.raises(UnreachableError):
+        run_segments(fresh, bad)
+    assert fresh.time == 0.0  # the reachable first move did not run either

@@ -210,3 +210,15 @@ def test_the_example_motion_passes():
     report = check_motion_file(path)
     assert report.passed, report.failures
     assert len(report.steps) == 10
+
+
+def test_check_reports_how_far_the_tip_strayed_from_a_straight_line():
+    from so101sim.motion import Move
+    from so101sim.preflight import format_report, preflight
+
+    steps = [Move.to_tip((0.22, 0.05, 0.08), 2.0, pitch=-60, profile="minimum_jerk")]
+    report = preflight(steps, start=STARTING_POSE)
+    commanded, measured = report.steps[0].line_deviation_mm
+    assert commanded <= 2.0 and 0 <= measured < 20.0
+    assert "tip off the straight line" in format_report(report)
+    assert list(report.to_dict()["steps"][0]["line_deviation_mm"]) == [commanded, measured]

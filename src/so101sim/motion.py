@@ -77,12 +77,34 @@ def hold(
 # ---------------------------------------------------------------------------- sequences
 @dataclass(frozen=True)
 class Move:
-    """Move to ``target`` over ``duration`` seconds with ``profile``."""
+    """Move to ``target`` (a pose) over ``duration`` seconds with ``profile``; or, with
+    ``tip`` = (x, y, z) metres and no target, move the gripper's tip there (optional tool
+    ``pitch``/``roll`` in degrees) along a straight line (``path="line"``) or in joint space
+    (``path="joint"``): see :meth:`Simulation.move_to` and :meth:`Move.to_tip`."""
 
-    target: Pose
+    target: Pose | None
     duration: float
     profile: str | Profile = "linear"
     phase: str = "move"
+    tip: tuple[float, float, float] | None = None
+    pitch: float | None = None
+    roll: float | None = None
+    path: str = "line"
+
+    @classmethod
+    def to_tip(
+        cls,
+        tip: Sequence[float],
+        duration: float,
+        *,
+        pitch: float | None = None,
+        roll: float | None = None,
+        path: str = "line",
+        profile: str | Profile = "linear",
+        phase: str = "move",
+    ) -> Move:
+        """A move of the tip to ``tip`` (metres, base frame)."""
+        return cls(None, duration, profile, phase, tuple(tip), pitch, roll, path)  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -121,15 +143,35 @@ LAB_MOTION: tuple[Segment, ...] = (
 
 
 def validate_segments(
-    m: mujoco.MjModel, segments: Sequence[Segment], *, clip: bool = False
+    m: mujoco.MjModel,
+    segments: Sequence[Segment],
+    *,
+    clip: bool = False,
+    start: np.ndarray | None = None,
 ) -> None:
-    """Check every segment's target, profile and duration before anything moves."""
+    """Check every segment's target, profile and duration before anything moves. With
+    ``start`` (the commanded pose, arm units), tip moves are planned in full from where the
+    segments before them end, so a point out of reach is found before the first one runs."""
     units = arm_units(m)
+    current = None if start is None else np.asarray(start, dtype=float)
     for seg in segments:
         check_duration(seg.duration, f"{seg.phase} duration")
-        if isinstance(seg, Move):
-            units.pose_to_array(seg.target, clip=clip)
+        if not isinstance(seg, Move):
+            continue
+        if seg.tip is None:
+            goal = units.pose_to_array(seg.target, clip=clip)  # type: ignore[arg-type]
             get_profile(seg.profile)
+        elif current is not None:
+            sim = Simulation(m, initial_pose=None)  # a scratch one: planning only, no stepping
+            sim.command_array(current, check=False)
+            _, targets = sim.plan_tip_move(
+                seg.tip, seg.duration, pitch=seg.pitch, roll=seg.roll, path=seg.path,
+                profile=seg.profile,
+            )  # fmt: skip
+            goal = targets[-1]
+        else:
+            continue
+        current = goal
 
 
 def run_segments(
@@ -139,24 +181,33 @@ def run_segments(
     viewer: object = None,
     observers: Sequence[Observer] = (),
     clip: bool = False,
+    trace: bool | None = None,
 ) -> RunResult:
     """Run a sequence of moves and holds on ``sim``; stops early if an observer (a closed
-    viewer) says so. Every segment is validated before the first one runs."""
-    validate_segments(sim.model, segments, clip=clip)
+    viewer) says so. Every segment is validated before the first one runs. ``trace``: keep
+    each segment's per-step arrays (None: for segments up to two minutes)."""
+    validate_segments(sim.model, segments, clip=clip, start=sim.commanded_array())
     results: list[SegmentResult] = []
     for seg in segments:
         if isinstance(seg, Move):
             r = sim.move_to(
                 seg.target,
                 seg.duration,
+                tip=seg.tip,
+                pitch=seg.pitch,
+                roll=seg.roll,
+                path=seg.path,
                 profile=seg.profile,
                 viewer=viewer,
                 observers=observers,
                 clip=clip,
                 phase=seg.phase,
+                trace=trace,
             )
         else:
-            r = sim.hold(seg.duration, viewer=viewer, observers=observers, phase=seg.phase)
+            r = sim.hold(
+                seg.duration, viewer=viewer, observers=observers, phase=seg.phase, trace=trace
+            )
         results.append(r)
         if not r.completed:
             log.info("run stopped during %s at t = %.3f s", r.phase, r.end_time)
@@ -171,9 +222,12 @@ def run_motion(
     *,
     observers: Sequence[Observer] = (),
     clip: bool = False,
+    trace: bool | None = None,
 ) -> RunResult:
     """Run a sequence of moves and holds on ``(m, d)`` (:func:`run_segments`)."""
-    return run_segments(Simulation.attach(m, d), segments, observers=observers, clip=clip)
+    return run_segments(
+        Simulation.attach(m, d), segments, observers=observers, clip=clip, trace=trace
+    )
 
 
 __all__ = [

@@ -238,6 +238,12 @@ def _step_rows(s: StepCheck, marked: set[tuple[int, str, type]]) -> list[str]:
         f"({c.max_penetration * 1000:.1f} mm)"
         for c in s.contacts
     )
+    if s.line_deviation_mm is not None:
+        commanded, measured = s.line_deviation_mm
+        rows.append(
+            f"{'':<19}tip off the straight line: {commanded:.2f} mm commanded, "
+            f"{measured:.2f} mm measured (largest)"
+        )
     return rows
 
 

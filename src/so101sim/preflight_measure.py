@@ -16,8 +16,9 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from .kinematics import line_deviation, tip_pose
 from .model import arm_index
-from .motion import Segment, SegmentResult, run_motion
+from .motion import Move, Segment, SegmentResult, run_motion
 from .simulation import Observer, Simulation
 from .trajectory import ShortMove, check_limited_moves
 from .units import JOINT_NAMES, Pose
@@ -60,6 +61,9 @@ class StepCheck:
     end_time: float
     joints: dict[str, JointCheck]
     contacts: tuple[Contact, ...]
+    # a straight-line tip move: the largest distance (mm) of the commanded and of the measured
+    # tip from the line; None for other steps
+    line_deviation_mm: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -122,7 +126,7 @@ def measure(
         sim.commanded_array(), steps, sim.timestep, units=sim.units, strict=strict
     )
     rec = _Recorder(model)
-    result = run_motion(model, sim.data, steps, observers=[rec])
+    result = run_motion(model, sim.data, steps, observers=[rec], trace=True)
 
     effort = rec.effort(model)
     saturated = _run_lengths(effort > saturation_level) * model.opt.timestep
@@ -144,9 +148,22 @@ def measure(
                 end_time=seg.end_time,
                 joints=joints,
                 contacts=tuple(contacts),
+                line_deviation_mm=_line_deviation(model, steps[k], seg),
             )
         )
     return Measurements(tuple(checks), sim.units.limits_dict(), tuple(stretched))
+
+
+def _line_deviation(
+    model: mujoco.MjModel, step: Segment, seg: SegmentResult
+) -> tuple[float, float] | None:
+    """(commanded, measured) largest distance in mm of the tip from a tip move's line."""
+    if not isinstance(step, Move) or step.tip is None or step.path != "line" or not seg.steps:
+        return None
+    start = tip_pose(seg.start, model=model).position
+    commanded = line_deviation(seg.commanded, start, step.tip, model=model).max_mm
+    measured = line_deviation(seg.measured, start, step.tip, model=model).max_mm
+    return float(commanded), float(measured)
 
 
 def _joint_checks(
