@@ -1,9 +1,12 @@
 import os
+import tempfile
 
 # Offscreen rendering and viewer-less runs: no display in tests unless a test sets one up.
 os.environ.pop("DISPLAY", None)
 os.environ.pop("WAYLAND_DISPLAY", None)
 os.environ.setdefault("MUJOCO_GL", "egl")
+# Compiled models are cached in a folder of this test session, not the user's cache.
+os.environ.setdefault("SO101SIM_CACHE_DIR", tempfile.mkdtemp(prefix="so101sim-test-cache-"))
 
 import shutil
 import subprocess

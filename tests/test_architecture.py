@@ -23,7 +23,7 @@ PACKAGE = Path(so101sim.__file__).parent
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("errors/validation", ("errors", "validation", "gl", "simclock")),
     ("units", ("units",)),
-    ("model", ("model",)),
+    ("model", ("model", "modelcache")),
     ("planning", ("profiles", "trajectory", "kinematics", "kinematics.*")),
     ("simulation", ("simulation", "stepping")),
     ("motion", ("motion", "motionfile", "motionfile_*")),

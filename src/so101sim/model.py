@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from .errors import ModelError
+from .modelcache import load_or_compile
 from .units import JOINT_NAMES, ArmUnits
 
 log = logging.getLogger(__name__)
@@ -38,7 +39,8 @@ def scene_path() -> Path:
 
 
 def load_model(path: str | Path | None = None) -> mujoco.MjModel:
-    """Compile an MJCF model, once per process and path.
+    """Compile an MJCF model, once per process and path (and once per content across
+    processes: the compiled model is cached on disk, see :mod:`so101sim.modelcache`).
 
     With no argument, loads the shipped ``scene.xml``. Later calls with the same file (same
     modification time) return the same compiled :class:`mujoco.MjModel`, so treat it as
@@ -59,7 +61,7 @@ def load_model(path: str | Path | None = None) -> mujoco.MjModel:
         model = _cache.get(key)
         if model is None:
             try:
-                model = mujoco.MjModel.from_xml_path(str(p))
+                model = load_or_compile(p, lambda: mujoco.MjModel.from_xml_path(str(p)))
             except (ValueError, mujoco.FatalError) as exc:
                 raise ModelError(f"model file {str(p)!r} does not compile: {exc}") from exc
             arm_index(model)  # fail now, not at the first command, if joints are missing
