@@ -59,6 +59,8 @@ _LAZY: dict[str, str] = {
     "Recorder": "recording",
     "VideoSettings": "recording",
     "plot_run": "recording",
+    "record": "handin",
+    "RecordingViewer": "handin",
     "SO101SimFollower": "robot",
     "SO101SimFollowerConfig": "robot",
     "JOINT_NAMES": "units",
@@ -71,6 +73,7 @@ if TYPE_CHECKING:
     from .motion import LAB_MOTION, Hold, Move, RunResult, Segment, run_motion
     from .motionfile import MotionFile, lab_motion_path, load_motion
     from .preflight import PreflightReport, Thresholds, check_motion_file, preflight
+    from .handin import RecordingViewer, record
     from .recording import Recorder, VideoSettings, plot_run
     from .robot import SO101SimFollower, SO101SimFollowerConfig
     from .simulation import Pacer, SegmentResult, Simulation
@@ -116,6 +119,7 @@ __all__ = [
     "PreflightReport",
     "RateError",
     "Recorder",
+    "RecordingViewer",
     "RecordingError",
     "RenderBackendError",
     "RobotConfigError",
@@ -141,6 +145,7 @@ __all__ = [
     "model_dir",
     "plot_run",
     "preflight",
+    "record",
     "run_motion",
     "scene_path",
 ]
