@@ -69,11 +69,11 @@ _LAZY: dict[str, str] = {
 }
 
 if TYPE_CHECKING:
+    from .handin import RecordingViewer, record
     from .model import load_model, model_dir, scene_path
     from .motion import LAB_MOTION, Hold, Move, RunResult, Segment, run_motion
     from .motionfile import MotionFile, lab_motion_path, load_motion
     from .preflight import PreflightReport, Thresholds, check_motion_file, preflight
-    from .handin import RecordingViewer, record
     from .recording import Recorder, VideoSettings, plot_run
     from .robot import SO101SimFollower, SO101SimFollowerConfig
     from .simulation import Pacer, SegmentResult, Simulation
@@ -119,8 +119,8 @@ __all__ = [
     "PreflightReport",
     "RateError",
     "Recorder",
-    "RecordingViewer",
     "RecordingError",
+    "RecordingViewer",
     "RenderBackendError",
     "RobotConfigError",
     "RunResult",
