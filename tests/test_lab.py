@@ -158,3 +158,22 @@ def test_the_limit_errors_advice_works_on_the_lab_helpers(md):
     assert r.target["elbow_flex"] == pytest.approx(info.value.upper)
     send_position_command(d, too_far, clip=True)
     set_initial_pose(d, too_far, clip=True)
+
+
+def test_the_lab_helpers_warn_when_a_run_goes_wrong(md, caplog):
+    import logging
+
+    m, d = md
+    set_initial_pose(d, STARTING_POSE)
+    with caplog.at_level(logging.WARNING, logger="so101sim"):
+        move_to_pose(m, d, None, ZERO_POSE, 2.0)
+        hold_position(m, d, None, 2.0)
+        move_to_pose(m, d, None, STARTING_POSE, 2.0)
+    assert caplog.text == ""  # the lab motion itself: no warning
+    into_floor = {**ZERO_POSE, "shoulder_lift": 60.0, "elbow_flex": 60.0}
+    with caplog.at_level(logging.WARNING, logger="so101sim"):
+        move_to_pose(m, d, None, into_floor, 2.0)
+    lines = [r.getMessage() for r in caplog.records]
+    assert any("touches" in line and "floor" in line and "t = " in line for line in lines)
+    assert any("lags its target" in line and "shoulder_lift" in line for line in lines)
+    assert all("so101sim check" in line for line in lines)

@@ -30,7 +30,8 @@ What differs from the handout, and why:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import logging
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import mujoco
@@ -38,8 +39,13 @@ import numpy as np
 
 from .errors import JointValueError
 from .model import default_units
-from .simulation import SegmentResult, Simulation
+from .preflight import Thresholds, describe
+from .preflight_judge import judge
+from .preflight_measure import StepRecorder, collect
+from .simulation import Observer, SegmentResult, Simulation
 from .units import JOINT_NAMES, Pose
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "convert_to_dictionary",
@@ -119,7 +125,15 @@ def move_to_pose(
     clock. Returns the move's :class:`~so101sim.simulation.SegmentResult` (the handout
     returned nothing; ignoring the result is fine). If the viewer is closed, returns early.
     """
-    return Simulation.attach(m, d).move_to(desired_position, duration, viewer=viewer, clip=clip)
+    sim = Simulation.attach(m, d)
+    return _watched(
+        sim,
+        "move_to_pose",
+        lambda obs: sim.move_to(
+            desired_position, duration, viewer=viewer, observers=obs, clip=clip,
+            phase="move_to_pose", trace=True,
+        ),
+    )  # fmt: skip
 
 
 def hold_position(
@@ -130,4 +144,34 @@ def hold_position(
     Before any command, holds the pose it finds. (The handout re-read the sagging measured pose
     and let the arm creep under gravity.)
     """
-    return Simulation.attach(m, d).hold(duration, viewer=viewer)
+    sim = Simulation.attach(m, d)
+    return _watched(
+        sim,
+        "hold_position",
+        lambda obs: sim.hold(
+            duration, viewer=viewer, observers=obs, phase="hold_position", trace=True
+        ),
+    )
+
+
+def _watched(
+    sim: Simulation, what: str, run: Callable[[list[Observer]], SegmentResult]
+) -> SegmentResult:
+    """Run one helper's segment while watching every step as ``so101sim check`` does, then log
+    one warning per problem found (tracking error, saturated actuator, contact) with the time
+    and the joint or bodies: the lab helpers say when a run went wrong."""
+    rec = StepRecorder(sim.model)
+    seg = run([rec])
+    th = Thresholds()
+    measured = collect(sim.model, [], [seg], rec, th.max_effort)
+    for finding in judge(measured, th):
+        if finding.failed:
+            what_went_wrong = describe(finding, th).split(": ", 1)[1]
+            log.warning(
+                "%s (%.3f-%.3f s): %s; run `so101sim check` on the motion for the full report",
+                what,
+                seg.start_time,
+                seg.end_time,
+                what_went_wrong,
+            )
+    return seg

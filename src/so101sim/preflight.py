@@ -168,10 +168,10 @@ def describe(finding: Finding, th: Thresholds) -> str:
                 f"{label}: {name} comes within {value(margin)} of its {side} limit "
                 f"({value(limit)}); the limit margin is {value(th.limit_margin)}"
             )
-        case EffortFinding(failed=True, peak=peak, saturated=saturated):
+        case EffortFinding(failed=True, peak=peak, saturated=saturated, at=at):
             return (
                 f"{label}: {name}'s actuator effort stays above {th.max_effort:.0%} of its "
-                f"force limit for {saturated * 1000:.0f} ms (peak {peak:.0%}; "
+                f"force limit for {saturated * 1000:.0f} ms from t = {at:.3f} s (peak {peak:.0%}; "
                 f"at most {th.max_saturation * 1000:.0f} ms allowed): the real servo would "
                 "not follow"
             )
@@ -181,9 +181,9 @@ def describe(finding: Finding, th: Thresholds) -> str:
                 f"for {saturated * 1000:.0f} ms (allowed: up to "
                 f"{th.max_saturation * 1000:.0f} ms); a smooth profile avoids the spike"
             )
-        case TrackingFinding(error=error):
+        case TrackingFinding(error=error, at=at):
             return (
-                f"{label}: {name} lags its target by up to {value(error)} "
+                f"{label}: {name} lags its target by up to {value(error)} at t = {at:.3f} s "
                 f"(max {value(th.max_tracking_error)})"
             )
         case ContactFinding(contact=c):

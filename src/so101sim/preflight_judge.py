@@ -56,6 +56,7 @@ class EffortFinding(Finding):
 
     peak: float  # fraction of the force limit
     saturated: float  # s
+    at: float = 0.0  # s: when the longest saturation began
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -63,6 +64,7 @@ class TrackingFinding(Finding):
     """A joint lagged its target by more than ``max_tracking_error``."""
 
     error: float  # arm units
+    at: float = 0.0  # s: when the error peaked
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -126,10 +128,19 @@ def _judge_joint(
                 joint=name,
                 peak=j.peak_effort,
                 saturated=j.saturated,
+                at=j.saturation_time,
             )
         )
     if j.peak_tracking_error > th.max_tracking_error:
-        out.append(TrackingFinding(step=k, phase=phase, joint=name, error=j.peak_tracking_error))
+        out.append(
+            TrackingFinding(
+                step=k,
+                phase=phase,
+                joint=name,
+                error=j.peak_tracking_error,
+                at=j.peak_tracking_time,
+            )
+        )
     return out
 
 

@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 
 from .kinematics import line_deviation, tip_pose
-from .model import arm_index
+from .model import arm_index, arm_units
 from .motion import Move, Segment, SegmentResult, run_motion
 from .simulation import Observer, Simulation
 from .trajectory import ShortMove, check_limited_moves
@@ -37,6 +37,8 @@ class JointCheck:
     # (a stretch that began in an earlier step counts from when it began)
     saturated: float
     peak_tracking_error: float  # arm units
+    saturation_time: float = 0.0  # s: when the longest saturation began
+    peak_tracking_time: float = 0.0  # s: when the tracking error peaked
 
 
 @dataclass(frozen=True)
@@ -76,7 +78,7 @@ class Measurements:
     stretched: tuple[ShortMove, ...]
 
 
-class _Recorder(Observer):
+class StepRecorder(Observer):
     """Called after every physics step: records actuator forces and contacts."""
 
     def __init__(self, m: mujoco.MjModel) -> None:
@@ -125,18 +127,34 @@ def measure(
     stretched = check_limited_moves(
         sim.commanded_array(), steps, sim.timestep, units=sim.units, strict=strict
     )
-    rec = _Recorder(model)
+    rec = StepRecorder(model)
     result = run_motion(model, sim.data, steps, observers=[rec], trace=True)
+    return collect(model, steps, result.segments, rec, saturation_level, lines, stretched)
 
+
+def collect(
+    model: mujoco.MjModel,
+    steps: Sequence[Segment],
+    segments: Sequence[SegmentResult],
+    rec: StepRecorder,
+    saturation_level: float,
+    lines: Sequence[int] = (),
+    stretched: Sequence[ShortMove] = (),
+) -> Measurements:
+    """The figures of ``segments`` (results of ``steps``, run with ``rec`` observing every
+    step, per-step traces kept)."""
+    units = arm_units(model)
     effort = rec.effort(model)
     saturated = _run_lengths(effort > saturation_level) * model.opt.timestep
-    ends = np.array([s.end_time for s in result.segments])
+    ends = np.array([s.end_time for s in segments])
     step_of_sample = np.searchsorted(ends + _EPS_T, np.array(rec.times))
-    lo, hi = sim.units.limits
+    lo, hi = units.limits
     checks = []
-    for k, seg in enumerate(result.segments):
+    for k, seg in enumerate(segments):
         in_step = step_of_sample == k
-        joints = _joint_checks(seg, lo, hi, effort[in_step], saturated[in_step])
+        joints = _joint_checks(
+            seg, lo, hi, effort[in_step], saturated[in_step], np.array(rec.times)[in_step]
+        )
         contacts = _contacts(model, rec.contacts, seg.start_time, seg.end_time, first=(k == 0))
         checks.append(
             StepCheck(
@@ -148,10 +166,10 @@ def measure(
                 end_time=seg.end_time,
                 joints=joints,
                 contacts=tuple(contacts),
-                line_deviation_mm=_line_deviation(model, steps[k], seg),
+                line_deviation_mm=_line_deviation(model, steps[k], seg) if k < len(steps) else None,
             )
         )
-    return Measurements(tuple(checks), sim.units.limits_dict(), tuple(stretched))
+    return Measurements(tuple(checks), units.limits_dict(), tuple(stretched))
 
 
 def _line_deviation(
@@ -167,9 +185,15 @@ def _line_deviation(
 
 
 def _joint_checks(
-    seg: SegmentResult, lo: np.ndarray, hi: np.ndarray, effort: np.ndarray, saturated: np.ndarray
+    seg: SegmentResult,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    effort: np.ndarray,
+    saturated: np.ndarray,
+    times: np.ndarray,
 ) -> dict[str, JointCheck]:
-    """Every joint's figures over one step; ``effort`` and ``saturated`` are its samples."""
+    """Every joint's figures over one step; ``effort``, ``saturated`` and ``times`` are its
+    samples."""
     start = np.array([seg.start[n] for n in JOINT_NAMES])
     both = np.vstack([start, seg.commanded, seg.measured])
     to_lower = (both - lo).min(axis=0)
@@ -177,6 +201,11 @@ def _joint_checks(
     none = np.zeros(len(JOINT_NAMES))
     peak = effort.max(axis=0) if len(effort) else none
     longest = saturated.max(axis=0) if len(saturated) else none
+    # when each joint's longest saturation began, and when its tracking error peaked
+    sat_end = times[saturated.argmax(axis=0)] if len(saturated) else none + seg.start_time
+    sat_start = np.maximum(sat_end - longest, seg.start_time)
+    track = np.abs(seg.commanded - seg.measured)
+    track_at = seg.times[track.argmax(axis=0)] if len(track) else none + seg.start_time
     return {
         name: JointCheck(
             limit_margin=float(min(to_lower[i], to_upper[i])),
@@ -184,6 +213,8 @@ def _joint_checks(
             peak_effort=float(peak[i]),
             saturated=float(longest[i]),
             peak_tracking_error=float(seg.max_tracking_error[name]),
+            saturation_time=float(sat_start[i]),
+            peak_tracking_time=float(track_at[i]),
         )
         for i, name in enumerate(JOINT_NAMES)
     }
@@ -228,4 +259,12 @@ def _contacts(
     ]
 
 
-__all__ = ["Contact", "JointCheck", "Measurements", "StepCheck", "measure"]
+__all__ = [
+    "Contact",
+    "JointCheck",
+    "Measurements",
+    "StepCheck",
+    "StepRecorder",
+    "collect",
+    "measure",
+]
