@@ -129,3 +129,15 @@ def test_tip_moves_in_a_sequence_are_planned_before_the_first_one_runs(sim):
     with pytest.raises(UnreachableError):
         run_segments(fresh, bad)
     assert fresh.time == 0.0  # the reachable first move did not run either
+
+
+def test_commanded_path_is_what_a_run_commands_without_simulating():
+    from so101sim.motion import commanded_path, run_segments
+
+    sim = Simulation()
+    times, path = commanded_path(sim.model, LAB_MOTION, STARTING_POSE)
+    r = run_segments(sim, LAB_MOTION, trace=True)
+    commanded = np.vstack([s.commanded for s in r.segments])  # via radians and back
+    np.testing.assert_allclose(path, commanded, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(times, np.concatenate([s.times for s in r.segments]))
+    assert sim.time == pytest.approx(6.0)

@@ -174,6 +174,34 @@ def validate_segments(
         current = goal
 
 
+def commanded_path(
+    model: mujoco.MjModel, segments: Sequence[Segment], start: Pose
+) -> tuple[np.ndarray, np.ndarray]:
+    """What a motion commands, step by step, without simulating it: ``(times, targets)``
+    with ``targets`` (n, 6) in arm units, one row per physics step (the target applied during
+    the step that ends at ``times[i]``). Planning depends only on the commanded targets, so
+    this is exactly what :func:`run_segments` would command from the rest pose ``start``.
+    """
+    sim = Simulation(model, initial_pose=start)  # scratch: planning only, never stepped
+    validate_segments(model, segments, start=sim.commanded_array())
+    rows: list[np.ndarray] = []
+    for seg in segments:
+        if isinstance(seg, Hold):
+            n = steps_for(seg.duration, sim.timestep)
+            targets = np.repeat(sim.commanded_array()[None], n, axis=0)
+        elif seg.tip is not None:
+            _, targets = sim.plan_tip_move(
+                seg.tip, seg.duration, pitch=seg.pitch, roll=seg.roll, path=seg.path,
+                profile=seg.profile,
+            )  # fmt: skip
+        else:
+            _, targets = sim.plan_move(seg.target, seg.duration, profile=seg.profile)
+        sim.command_array(targets[-1], check=False)
+        rows.append(targets)
+    path = np.vstack(rows) if rows else np.zeros((0, 6))
+    return sim.timestep * np.arange(1, len(path) + 1), path
+
+
 def run_segments(
     sim: Simulation,
     segments: Sequence[Segment] = LAB_MOTION,
@@ -240,6 +268,7 @@ __all__ = [
     "RunResult",
     "Segment",
     "SegmentResult",
+    "commanded_path",
     "get_profile",
     "hold",
     "move",
