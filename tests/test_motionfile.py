@@ -307,7 +307,8 @@ DEEP_KEY = "[[steps]]\nduration = 1\nmove.elbow_flex." + ".".join(["a"] * 3000) 
         ("[[steps]]\nhold = 1\n[[steps]]\nmove = 'zero'\nduration = 7200\n", 5, "at most 3600 s"),
         ("[[steps]]\nmove = 'zero'\nduration = 1e9\nprofile = 'limited'\n", 3, "at most 3600 s"),
         ("[[steps]]\ngripper = 50\nduration = 3600.5\n", 3, "at most 3600 s"),
-        ("[[steps]]\nhold = 0x" + "f" * 300 + "\n", 2, "too large"),
+        ("[[steps]]\nhold = 0x" + "f" * 300 + "\n", 2, "302 characters long"),
+        ("[[steps]]\nhold = 1" + "0" * 99 + "\n", 2, "at most 86400 s"),  # 100 characters
         # integers Python will not convert (over 4300 digits), hex or decimal
         ("[[steps]]\nhold = " + "9" * 5000 + "\n", 2, "5000 characters long"),
         ("[[steps]]\nhold = 1\n\nmove = 0x" + "f" * 5000 + "\n", 4, "characters long"),

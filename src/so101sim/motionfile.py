@@ -129,7 +129,7 @@ JointValueError, DurationError a SettingError): the loader turns them into Motio
 _REPR = reprlib.Repr()  # Python 3.11's Repr takes no arguments: set its limits
 _REPR.maxlevel, _REPR.maxstring, _REPR.maxother, _REPR.maxlong = 2, 60, 60, 60
 """Values quoted in messages: a few levels and characters of them (a file may hold a string of
-a megabyte or an integer of a thousand digits)."""
+a megabyte)."""
 
 
 def _show(value: Any) -> str:

@@ -11,8 +11,11 @@ counts them: only ``\\n`` (or ``\\r\\n``) ends a line; U+2028, U+0085 and the li
 
 The same pass bounds what :mod:`tomllib` would otherwise recurse on or choke on: data nested
 more than :data:`MAX_NESTING` levels deep (arrays, inline tables, tables and dotted keys
-together) and bare values (numbers, dates) longer than :data:`MAX_TOKEN` characters (Python
-refuses to convert integers of more than 4300 digits). :attr:`KeyLines.problem` says where.
+together; tomllib raised RecursionError from about 330 levels) and bare values (numbers, dates)
+longer than :data:`MAX_TOKEN` characters (Python refuses to convert integers of more than 4300
+digits, and error messages quote the value). :attr:`KeyLines.problem` says where.
+:func:`load_toml` runs the scan, then tomllib; :func:`read_text_limited` reads a file with
+bounds (also the leader's calibration, :mod:`so101sim.teleop_calibration`).
 
 The scanner follows TOML's grammar loosely and never raises: where the text is not valid TOML
 it skips to the next line (tomllib reports the syntax error). Where a path is not found, the
@@ -37,7 +40,7 @@ MAX_FILE_BYTES = 1 << 20
 MAX_NESTING = 32
 """The deepest nesting of data accepted (``("steps", 0, "move", "elbow_flex")`` is 4 deep)."""
 
-MAX_TOKEN = 1000
+MAX_TOKEN = 100
 """The longest bare value (number, boolean, date) accepted, in characters."""
 
 
