@@ -12,9 +12,10 @@ Each property says "nothing crashes, nothing is lost":
   traceback, whatever values ``hold``, ``run``, ``check`` and ``teleop`` are given.
 
 Runs are kept short (durations of at most 0.2 s, small frames) and the number of examples
-bounded, so the file takes well under a minute; the database is off (no ``.hypothesis``
-folder). A bug found here and not fixable in the files this suite's author owns is an
-``xfail`` case at the end, with the reason.
+bounded, so the file takes well under a minute (about 10 to 30 s on the busy 2-core
+development machine, the command line's property most of it); the example database is off, so
+each run draws new examples. A bug found here in code outside the input layer (the recording
+settings) is an ``xfail`` case at the end, with the reason, until it is fixed there.
 """
 
 from __future__ import annotations

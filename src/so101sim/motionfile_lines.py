@@ -102,7 +102,9 @@ _ML_BASIC = re.compile(r'"""(?:[^"\\]|\\[\s\S]|"(?!""))*"""(?:"{1,2})?')
 _ML_LITERAL = re.compile(r"'''(?:[^']|'(?!''))*'''(?:'{1,2})?")
 _DOT = re.compile(r"[ \t]*\.[ \t]*")
 _EQUALS = re.compile(r"[ \t]*=")
-_BARE_VALUE = re.compile(r"\d{4}-\d\d-\d\d[ Tt]\d[0-9:.+\-Zz]*|[A-Za-z0-9_+\-.:]+")
+_BARE_VALUE = r"\d{4}-\d\d-\d\d[ Tt]\d[0-9:.+\-Zz]*|[A-Za-z0-9_+\-.:]+"
+_SCALAR = re.compile(rf"{_BASIC.pattern}|{_LITERAL.pattern}|(?P<bare>{_BARE_VALUE})")
+_SEPARATOR = re.compile(r"(?:[ \t\r\n]|#[^\n]*)*(,?)(?:[ \t\r\n]|#[^\n]*)*")
 _CLOSE = {"[": "]", "{": "}"}
 
 
@@ -207,7 +209,7 @@ class KeyLines:
                 f"{self.max_nesting} (tables, arrays and dotted keys together)",
             )
             raise _Stop
-        for n in range(1, len(path) + 1):  # a table named in a header or dotted key starts there
+        for n in range(1, len(path) + 1):  # a table named in a header or dotted key starts here
             self._starts.setdefault(path[:n], pos)
 
     def _key(self) -> tuple[str, ...]:
@@ -238,7 +240,7 @@ class KeyLines:
         (no recursion), their elements and keys recorded."""
         stack: list[tuple[str, tuple[Any, ...], int]] = []  # (bracket, path, elements so far)
         while True:
-            self._skip(stack)
+            self._pos = (_WS_NL if stack else _WS).match(self.text, self._pos).end()
             bracket = self.text[self._pos : self._pos + 1]
             if bracket in _CLOSE:
                 stack.append((bracket, path, 0))
@@ -248,20 +250,16 @@ class KeyLines:
                     continue
             else:
                 self._scalar()
-            if self._after_value(stack):
+            if not stack or self._after_value(stack):
                 return
             path = self._next_in(stack)
-
-    def _skip(self, stack: list[tuple[str, tuple[Any, ...], int]]) -> None:
-        pattern = _WS_NL if stack else _WS
-        self._pos = pattern.match(self.text, self._pos).end()
 
     def _closes_at_once(self, stack: list[tuple[str, tuple[Any, ...], int]]) -> bool:
         """Just after an opening bracket: True if the container is empty (it is popped)."""
         bracket, path, _ = stack[-1]
         if len(path) >= self.max_nesting:
             self._found((*path, 0), self._pos - 1)  # too deep: stops here
-        self._skip(stack)
+        self._pos = _WS_NL.match(self.text, self._pos).end()
         if self.text.startswith(_CLOSE[bracket], self._pos):
             self._pos += 1
             stack.pop()
@@ -271,12 +269,11 @@ class KeyLines:
     def _next_in(self, stack: list[tuple[str, tuple[Any, ...], int]]) -> tuple[Any, ...]:
         """At the start of the next element (array) or key (inline table) of the innermost
         container: its path, recorded."""
-        self._skip(stack)
         bracket, path, count = stack[-1]
         start = self._pos
-        if bracket == "[":
+        if bracket == "[":  # as deep as the first element, checked by _closes_at_once
             element: tuple[Any, ...] = (*path, count)
-            self._found(element, start)
+            self._starts.setdefault(element, start)
             return element
         element = (*path, *self._key())
         self._found(element, start)
@@ -287,50 +284,42 @@ class KeyLines:
         return element
 
     def _after_value(self, stack: list[tuple[str, tuple[Any, ...], int]]) -> bool:
-        """After a value: consume ``,`` or closing brackets. True once the outermost container
-        has closed (or there was none): the ``key = value`` is complete."""
+        """After a value in a container: consume ``,`` and closing brackets. True once the
+        outermost container has closed: the ``key = value`` is complete. Stops just before
+        the next element or key otherwise."""
         while stack:
-            self._skip(stack)
+            m = _SEPARATOR.match(self.text, self._pos)
+            self._pos = m.end()
             bracket, path, count = stack[-1]
-            c = self.text[self._pos : self._pos + 1]
-            if c == ",":
+            if self.text.startswith(_CLOSE[bracket], self._pos):  # maybe after a last comma
                 self._pos += 1
-                self._skip(stack)
-                if not self.text.startswith(_CLOSE[bracket], self._pos):
-                    stack[-1] = (bracket, path, count + 1)
-                    return False
-                c = _CLOSE[bracket]  # a trailing comma
-            if c != _CLOSE[bracket]:
+                stack.pop()
+            elif m.group(1):
+                stack[-1] = (bracket, path, count + 1)
+                return False
+            else:
                 raise _Stop
-            self._pos += 1
-            stack.pop()
         return True
 
     def _scalar(self) -> None:
         """A string (any of TOML's four kinds) or a bare value (number, boolean, date)."""
         text, pos = self.text, self._pos
-        if text.startswith('"""', pos):
-            patterns: tuple[re.Pattern[str], ...] = (_ML_BASIC,)
-        elif text.startswith("'''", pos):
-            patterns = (_ML_LITERAL,)
-        else:
-            patterns = (_BASIC, _LITERAL, _BARE_VALUE)
-        for pattern in patterns:
-            m = pattern.match(text, pos)
-            if not m and pattern in (_ML_BASIC, _ML_LITERAL):
-                self._pos = len(text)  # never closed: the rest of the text is that string
-                raise _Stop
-            if m:
-                if pattern is _BARE_VALUE and m.end() - pos > MAX_TOKEN:
-                    self.problem = (
-                        self.line_at(pos),
-                        f"a value {m.end() - pos} characters long; expected a number, "
-                        f"true/false or a date of at most {MAX_TOKEN} characters",
-                    )
-                    raise _Stop
-                self._pos = m.end()
-                return
-        raise _Stop
+        pattern = _SCALAR
+        if text.startswith('"""', pos) or text.startswith("'''", pos):
+            pattern = _ML_BASIC if text[pos] == '"' else _ML_LITERAL
+        m = pattern.match(text, pos)
+        if not m:
+            if pattern is not _SCALAR:  # never closed: the rest of the text is that string
+                self._pos = len(text)
+            raise _Stop
+        if m.lastgroup == "bare" and m.end() - pos > MAX_TOKEN:
+            self.problem = (
+                self.line_at(pos),
+                f"a value {m.end() - pos} characters long; expected a number, true/false or "
+                f"a date of at most {MAX_TOKEN} characters",
+            )
+            raise _Stop
+        self._pos = m.end()
 
 
 def _unescape(quoted: str) -> str:
