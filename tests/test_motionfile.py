@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import math
+import os
+import signal
 import textwrap
+from contextlib import contextmanager
 
 import mujoco
 import numpy as np
@@ -14,6 +17,7 @@ from so101sim.errors import MotionFileError, So101SimError
 from so101sim.model import default_units, load_model
 from so101sim.motion import LAB_MOTION, Hold, Move, run_motion
 from so101sim.motionfile import lab_motion_path, load_motion, parse_motion
+from so101sim.motionfile_lines import MAX_FILE_BYTES, KeyLines
 from so101sim.simulation import Simulation
 from so101sim.units import (
     JOINT_NAMES,
@@ -286,3 +290,165 @@ def test_steps_are_motion_step_objects():
     mf = _parse("[[steps]]\nhold = 1\n[[steps]]\nmove = 'zero'\nduration = 2\n")
     assert isinstance(mf.steps[0], Hold) and isinstance(mf.steps[1], Move)
     assert set(mf.steps[1].target) == set(JOINT_NAMES)
+
+
+# ---------------------------------------------------------------------------- huge or odd inputs
+DEEP_ARRAY = "x = " + "[" * 600 + "]" * 600 + "\n"
+DEEP_TABLE = "x = " + "{ a = " * 600 + "1" + " }" * 600 + "\n"
+DEEP_KEY = "[[steps]]\nduration = 1\nmove.elbow_flex." + ".".join(["a"] * 3000) + " = 1\n"
+
+
+@pytest.mark.parametrize(
+    ("text", "line", "reason"),
+    [
+        # durations are bounded before they size anything: a move at most an hour, a hold a day
+        ("[[steps]]\nhold = 1e9\n", 2, "at most 86400 s"),
+        ("[[steps]]\nhold = 1e308\n", 2, "at most 86400 s"),
+        ("[[steps]]\nhold = 1\n[[steps]]\nmove = 'zero'\nduration = 7200\n", 5, "at most 3600 s"),
+        ("[[steps]]\nmove = 'zero'\nduration = 1e9\nprofile = 'limited'\n", 3, "at most 3600 s"),
+        ("[[steps]]\ngripper = 50\nduration = 3600.5\n", 3, "at most 3600 s"),
+        ("[[steps]]\nhold = 0x" + "f" * 300 + "\n", 2, "302 characters long"),
+        ("[[steps]]\nhold = 1" + "0" * 99 + "\n", 2, "at most 86400 s"),  # 100 characters
+        # integers Python will not convert (over 4300 digits), hex or decimal
+        ("[[steps]]\nhold = " + "9" * 5000 + "\n", 2, "5000 characters long"),
+        ("[[steps]]\nhold = 1\n\nmove = 0x" + "f" * 5000 + "\n", 4, "characters long"),
+        # nesting bounded before tomllib recurses (it raised RecursionError from 330 levels)
+        (DEEP_ARRAY, 1, "nests 33 levels deep"),
+        (DEEP_TABLE, 1, "at most 32"),
+        ("[[steps]]\nhold = 1\n\n" + DEEP_ARRAY, 4, "nests"),
+        (DEEP_KEY, 3, "nests"),  # a dotted key (a RecursionError quoting its value)
+        ("[" + ".".join(["t"] * 40) + "]\n", 1, "nests"),
+    ],
+)
+def test_huge_or_deep_values_are_motion_file_errors(text, line, reason):
+    err = _error(text)
+    assert err.line == line, str(err)
+    assert reason in err.reason
+
+
+def test_the_longest_durations_are_accepted():
+    mf = _parse("[[steps]]\nhold = 86400\n[[steps]]\nmove = 'zero'\nduration = 3600\n")
+    assert [s.duration for s in mf.steps] == [86400.0, 3600.0]
+
+
+def test_data_up_to_the_nesting_bound_reaches_the_loader():
+    err = _error("x = " + "[" * 31 + "]" * 31 + "\n[[steps]]\nhold = 1\n")  # 32 levels with x
+    assert "unknown key 'x'" in err.reason
+
+
+def test_values_quoted_in_errors_are_cut_short():
+    err = _error('steps = ["' + "y" * 100_000 + '"]\n')
+    assert "must be a table" in err.reason and len(str(err)) < 300
+    err = _error("[[steps]]\nhold = 1\nname = [" + "1, " * 10_000 + "]\n")
+    assert err.line == 3 and len(str(err)) < 300
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="no /dev/zero here")
+def test_a_device_is_refused_without_reading_it():
+    # It was read until memory ran out.
+    with pytest.raises(MotionFileError, match="not a regular file") as exc:
+        load_motion("/dev/zero")
+    assert exc.value.line == 0
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+def test_a_pipe_is_refused_without_waiting_for_a_writer(tmp_path):
+    fifo = tmp_path / "motion.toml"
+    os.mkfifo(fifo)
+    with pytest.raises(MotionFileError, match="not a regular file"):
+        load_motion(fifo)
+
+
+def test_files_past_a_mebibyte_are_refused(tmp_path):
+    step = "[[steps]]\nhold = 1\n"
+    at_bound = tmp_path / "big.toml"
+    at_bound.write_bytes(step.encode() + b"#" * (MAX_FILE_BYTES - len(step) - 1) + b"\n")
+    assert at_bound.stat().st_size == MAX_FILE_BYTES
+    assert len(load_motion(at_bound).steps) == 1
+    with open(at_bound, "ab") as f:
+        f.write(b"\n")
+    with pytest.raises(MotionFileError, match=f"larger than {MAX_FILE_BYTES} bytes"):
+        load_motion(at_bound)
+    with pytest.raises(MotionFileError, match="at most 1 MiB"):
+        parse_motion(step + "#" * MAX_FILE_BYTES)
+
+
+@pytest.mark.parametrize(
+    ("content", "match"),
+    [
+        (b"\x7fELF\x02\x01\x01\x00\xd0\xff", "not UTF-8"),  # a program, say /bin/ls
+        (b"[[steps]]\nhold = 1\n\xff\n", "not UTF-8"),
+    ],
+)
+def test_files_that_are_not_text_are_refused(tmp_path, content, match):
+    path = tmp_path / "m.toml"
+    path.write_bytes(content)
+    with pytest.raises(MotionFileError, match=match):
+        load_motion(path)
+
+
+def test_paths_that_cannot_name_a_file_are_refused(tmp_path):
+    with pytest.raises(MotionFileError, match="not a regular file"):
+        load_motion(tmp_path)
+    with pytest.raises(MotionFileError, match="null"):
+        load_motion("motion\0.toml")
+
+
+# ---------------------------------------------------------------------------- line numbers
+@pytest.mark.parametrize(
+    ("text", "line"),
+    [
+        # U+2028, U+2029, U+0085 and the like do not end a line in TOML
+        ('description = "a\u2028b\u2029c\u0085d"\n[[steps]]\nhold = -1\n', 3),
+        ("# a\u2028b\u2029\u0085\n[[steps]]\nhold = 1\n[[steps]]\nhold = 0\n", 5),
+        ("[[steps]]\r\nhold = 1\r\n[[steps]]\r\nhold = 0\r\n", 4),
+        # a [[steps]] inside a multi-line string or a comment is not a table
+        ("description = '''\n[[steps]]\nhold = 1\n'''\n# [[steps]]\n[[steps]]\nhold = 0\n", 7),
+        ('description = """\n[[steps]]\\\n"""\n[[steps]]\nhold = 1\n[[steps]]\nhold = 0\n', 7),
+        # steps as one multi-line array of inline tables
+        ("steps = [\n  { hold = 1 },\n  { move = 'zero', duration = -1 },\n]\n", 3),
+        ("steps = [\n  { hold = 1 },  # first\n\n  { hold = 'x' },\n]\n", 4),
+        # a sub-table of the last [[steps]], and a key of a nested inline table
+        ("[[steps]]\nhold = 1\n[[steps]]\nduration = 1\n[steps.move]\nelbow_flex = 500\n", 6),
+        ("steps = [{ hold = 1 },\n  { duration = 1, move = { wrist_flex = 500 } }]\n", 2),
+        # quoted keys with escapes are the keys tomllib reads
+        ('[poses.a]\n"elbow_fle\\u0078" = 1\n"wrist_flex\\u002Epos" = 500\n', 3),
+        # the end of a file that ends inside an array: its last line
+        ('description = "a\u2028b"\nsteps = [\n', 2),
+    ],
+)
+def test_lines_are_counted_as_toml_counts_them(text, line):
+    err = _error(text)
+    assert err.line == line, str(err)
+
+
+def test_long_lines_are_located_in_linear_time():
+    # An inline string of 20k characters took 3.4 s to locate (quadratic: 200k did not finish
+    # in a minute); now a megabyte takes a fraction of a second. The alarm is only a guard
+    # against hanging the suite, some 100 times what the scan needs on a busy machine.
+    n = MAX_FILE_BYTES - 100
+    text = '[poses]\nup = { elbow_flex = 0, s = "' + "a" * n + '" }\n[[steps]]\nhold = 1\n'
+    with _alarm(60):
+        err = _error(text)
+        assert err.line == 2 and "unknown joint 's'" in err.reason
+        loc = KeyLines("x = { " + "a" * n + " }\n" + "y = 1\n")
+        assert loc.line(("y",)) == 2
+
+
+@contextmanager
+def _alarm(seconds: int):
+    """Fail instead of hanging (where SIGALRM exists)."""
+    if not hasattr(signal, "SIGALRM"):
+        yield
+        return
+
+    def fail(*_):
+        raise AssertionError(f"still scanning after {seconds} s")
+
+    old = signal.signal(signal.SIGALRM, fail)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)

@@ -4,15 +4,18 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 import types
 
 import pytest
 
+from so101sim import cli
 from so101sim.errors import CalibrationError, DurationError, LeaderError, RateError
 from so101sim.model import default_units
 from so101sim.robot import SO101SimFollower, SO101SimFollowerConfig
 from so101sim.teleop import (
+    MAX_CALIBRATION_BYTES,
     MOTOR_IDS,
     FeetechLeaderBus,
     MotorCalibration,
@@ -168,6 +171,39 @@ def test_unreadable_calibration_files(tmp_path):
     bad.write_text("{not json")
     with pytest.raises(CalibrationError, match="not valid JSON"):
         load_calibration(bad)
+
+
+@pytest.mark.parametrize(
+    ("content", "match"),
+    [
+        (b"\x7fELF\x02\x01\x01\x00\xd0\xff\x00", "not UTF-8 text"),  # a program (/bin/ls)
+        (b"[" * 30_000 + b"]" * 30_000, "nests too deep"),  # was a RecursionError
+        (b"9" * 5000, "cannot be read as JSON"),  # was a ValueError (over 4300 digits)
+        (b"{}" + b" " * MAX_CALIBRATION_BYTES, "larger than"),
+    ],
+)
+def test_calibration_files_that_are_not_json_are_calibration_errors(tmp_path, content, match):
+    path = tmp_path / "leader.json"
+    path.write_bytes(content)
+    with pytest.raises(CalibrationError, match=match):
+        load_calibration(path)
+
+
+def test_calibration_from_a_device_or_folder_is_refused_without_reading_it(tmp_path):
+    with pytest.raises(CalibrationError, match="not a regular file"):
+        load_calibration(tmp_path)
+    if os.path.exists("/dev/zero"):  # was read until memory ran out
+        with pytest.raises(CalibrationError, match="not a regular file"):
+            load_calibration("/dev/zero")
+
+
+def test_cli_teleop_reports_a_binary_calibration_file(tmp_path, capsys):
+    path = tmp_path / "ls"
+    path.write_bytes(b"\x7fELF\x02\x01\x01\x00\xd0\xff" * 100)
+    # `so101sim teleop --calibration /bin/ls` raised UnicodeDecodeError; the port is not opened
+    assert cli.main(["teleop", "--port", "/dev/nonexistent", "--calibration", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "not UTF-8 text" in err and "Traceback" not in err
 
 
 def test_lerobot_calibration_path_honours_lerobots_variables(monkeypatch, tmp_path):

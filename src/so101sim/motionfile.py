@@ -36,15 +36,19 @@ previous target, so it returns full-pose :class:`~so101sim.motion.Move` and
 :class:`~so101sim.motion.Hold` steps. It rejects, as :class:`MotionFileError` with the file,
 line and reason: TOML syntax errors, unknown keys, unknown pose names, unknown joint names, bad
 units, values that are not finite numbers or lie outside the joint limits, and durations that
-are not numbers > 0. Joint values are checked by the units module as the API checks them: a
-value within :data:`~so101sim.units.LIMIT_TOLERANCE` past a limit is clipped onto it; durations
-and profile names by :mod:`so101sim.validation`. Line numbers come from
-:mod:`so101sim.motionfile_lines`.
+are not numbers > 0 or are too long (a move at most an hour,
+:data:`~so101sim.profiles.MAX_MOVE_DURATION_S`; a hold at most a day,
+:data:`~so101sim.validation.MAX_DURATION_S`). It reads at most 1 MiB, from a regular file
+only (not a device such as ``/dev/zero`` or a pipe), and refuses data nested more than 32
+levels deep before :mod:`tomllib` sees it. Joint values are checked by the units module as the
+API checks them: a value within :data:`~so101sim.units.LIMIT_TOLERANCE` past a limit is
+clipped onto it; durations and profile names by :mod:`so101sim.validation`. Line numbers and
+the bounded reading come from :mod:`so101sim.motionfile_lines`.
 """
 
 from __future__ import annotations
 
-import tomllib
+import reprlib
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -63,7 +67,14 @@ from .errors import (
 )
 from .model import default_units
 from .motion import PROFILES, Hold, Move, Segment
-from .motionfile_lines import KeyLines, toml_error_line
+from .motionfile_lines import (
+    MAX_FILE_BYTES,
+    KeyLines,
+    UnreadableFileError,
+    load_toml,
+    read_text_limited,
+)
+from .profiles import MAX_MOVE_DURATION_S
 from .units import (
     DEG_PER_RAD,
     GRIPPER,
@@ -75,7 +86,7 @@ from .units import (
     normalize_joint_name,
     parse_pose,
 )
-from .validation import check_choice, check_duration
+from .validation import MAX_DURATION_S, check_choice, check_duration
 
 BUILTIN_POSES: dict[str, dict[str, float]] = {"rest": dict(STARTING_POSE), "zero": dict(ZERO_POSE)}
 """Poses every motion file may use without defining them."""
@@ -115,6 +126,23 @@ _CHECK_ERRORS = (JointNameError, JointValueError, SettingError)
 JointValueError, DurationError a SettingError): the loader turns them into MotionFileError."""
 
 
+_REPR = reprlib.Repr()  # Python 3.11's Repr takes no arguments: set its limits
+_REPR.maxlevel, _REPR.maxstring, _REPR.maxother, _REPR.maxlong = 2, 60, 60, 60
+"""Values quoted in messages: a few levels and characters of them (a file may hold a string of
+a megabyte)."""
+
+
+def _show(value: Any) -> str:
+    return _REPR.repr(value)
+
+
+def _names(names: Mapping[str, Any], most: int = 20) -> str:
+    """Some of ``names``, sorted and quoted, for a message."""
+    shown = [n if len(n) <= 40 else n[:37] + "..." for n in sorted(names)[:most]]
+    more = f" and {len(names) - most} more" if len(names) > most else ""
+    return ", ".join(shown) + more
+
+
 def _file_reason(exc: Exception) -> str:
     """The reason of a units or validation error, as said about a motion file."""
     if isinstance(exc, JointLimitError):
@@ -131,10 +159,10 @@ class _Loader:
     :class:`MotionFileError` at the line of the key they came from.
     """
 
-    def __init__(self, text: str, path: str, units: ArmUnits) -> None:
+    def __init__(self, loc: KeyLines, path: str, units: ArmUnits) -> None:
         self.path = path
         self.units = units
-        self.loc = KeyLines(text)
+        self.loc = loc
         self.radians = False  # body joints given in radians (units = "rad")
         lo, hi = units.limits
         self.inside = (lo + hi) / 2  # a pose inside every limit: one joint is checked at a time
@@ -160,7 +188,7 @@ class _Loader:
             if key not in allowed:
                 raise self.fail(
                     (*where, key),
-                    f"unknown key {key!r} in {what}; expected {', '.join(allowed)}",
+                    f"unknown key {_show(key)} in {what}; expected {', '.join(allowed)}",
                 )
 
     # ------------------------------------------------------------------------ the file
@@ -191,7 +219,7 @@ class _Loader:
         if value not in UNITS:
             raise self.fail(
                 ("units",),
-                f"unknown units {value!r}; expected 'deg' (default) or 'rad' for the body "
+                f"unknown units {_show(value)}; expected 'deg' (default) or 'rad' for the body "
                 "joints (the gripper is always 0-100)",
             )
         return str(value)
@@ -200,9 +228,9 @@ class _Loader:
         with self.reasons(where):
             return check_choice(value, "profile", sorted(PROFILES))
 
-    def duration(self, value: Any, where: Where, what: str) -> float:
+    def duration(self, value: Any, where: Where, what: str, maximum: float) -> float:
         with self.reasons(where):
-            return check_duration(value, what)
+            return check_duration(value, what, maximum=maximum)
 
     # ------------------------------------------------------------------------ poses
     def poses(self, table: Any) -> dict[str, dict[str, float]]:
@@ -213,7 +241,7 @@ class _Loader:
             if name in BUILTIN_POSES:
                 raise self.fail(
                     ("poses", name),
-                    f"pose {name!r} is built in and cannot be redefined; choose another name",
+                    f"pose {_show(name)} is built in and cannot be redefined; choose another name",
                 )
             poses[name] = self.pose(value, ("poses", name))
         return poses
@@ -227,7 +255,7 @@ class _Loader:
         if not isinstance(value, Mapping):
             raise self.fail(
                 where,
-                f"a pose must be a table of joint = value, got {value!r}; e.g. "
+                f"a pose must be a table of joint = value, got {_show(value)}; e.g. "
                 "{ shoulder_lift = 10, gripper = 50 }",
             )
         given: dict[str, Any] = {}
@@ -254,7 +282,7 @@ class _Loader:
         if name not in self.known:
             raise self.fail(
                 where,
-                f"unknown pose {name!r}; defined poses are {', '.join(sorted(self.known))} "
+                f"unknown pose {_show(name)}; defined poses are {_names(self.known)} "
                 "(add it under [poses])",
             )
         return self.known[name]
@@ -262,7 +290,7 @@ class _Loader:
     def start(self, value: Any) -> dict[str, float]:
         """The start pose, named or inline; it must give all six joints."""
         if isinstance(value, str):
-            pose, prefix = self.named(value, ("start",)), f"start = {value!r}: "
+            pose, prefix = self.named(value, ("start",)), f"start = {_show(value)}: "
         else:
             pose, prefix = self.pose(value, ("start",)), "start: "
         with self.reasons(("start",), prefix):
@@ -291,11 +319,12 @@ class _Loader:
         kind = self.step_kind(i, raw, where)
         name = self.step_name(raw, where)
         if kind == "hold":
-            d = self.duration(raw["hold"], (*where, "hold"), f"step {i + 1} hold")
+            d = self.duration(raw["hold"], (*where, "hold"), f"step {i + 1} hold", MAX_DURATION_S)
             return Hold(d, phase=name or "hold"), current
         if "duration" not in raw:
             raise self.fail(where, f"step {i + 1} ({kind}) needs a duration in seconds")
-        d = self.duration(raw["duration"], (*where, "duration"), f"step {i + 1} duration")
+        what = f"step {i + 1} duration"
+        d = self.duration(raw["duration"], (*where, "duration"), what, MAX_MOVE_DURATION_S)
         profile = self.profile(raw.get("profile", self.default_profile), (*where, "profile"))
         target, label = self.target(kind, raw[kind], current, (*where, kind))
         pose = self.units.array_to_pose(target)
@@ -304,7 +333,7 @@ class _Loader:
     def step_kind(self, i: int, raw: Any, where: Where) -> str:
         """``"move"``, ``"hold"`` or ``"gripper"``, once the step's keys are checked."""
         if not isinstance(raw, Mapping):
-            raise self.fail(where, f"step {i + 1} must be a table, got {raw!r}")
+            raise self.fail(where, f"step {i + 1} must be a table, got {_show(raw)}")
         kinds = [k for k in STEP_KEYS if k in raw]
         if len(kinds) != 1:
             raise self.fail(
@@ -318,7 +347,7 @@ class _Loader:
     def step_name(self, raw: Mapping[str, Any], where: Where) -> str | None:
         name = raw.get("name")
         if name is not None and not isinstance(name, str):
-            raise self.fail((*where, "name"), f"name must be a string, got {name!r}")
+            raise self.fail((*where, "name"), f"name must be a string, got {_show(name)}")
         return name
 
     def target(
@@ -341,31 +370,29 @@ def parse_motion(text: str, *, path: str = "<string>", units: ArmUnits | None = 
     ``units`` gives the joint limits to check against (default: the shipped model's).
 
     Raises:
-        MotionFileError: the text is not valid TOML, or says something invalid (with the line).
+        MotionFileError: the text is not valid TOML, is too large (over 1 MiB) or nests too
+            deep, or says something invalid (with the line).
     """
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        line, reason = toml_error_line(exc, text)
-        raise MotionFileError(path, line, f"not valid TOML: {reason}") from None
-    return _Loader(text, path, units if units is not None else default_units()).load(data)
+    data, loc = load_toml(text, path)
+    return _Loader(loc, path, units if units is not None else default_units()).load(data)
 
 
 def load_motion(path: str | Path, *, units: ArmUnits | None = None) -> MotionFile:
-    """Read a motion file (TOML). Nothing in it is evaluated.
+    """Read a motion file (TOML, UTF-8, at most 1 MiB). Nothing in it is evaluated.
 
     Raises:
-        MotionFileError: the file cannot be read, is not valid TOML, or says something invalid.
+        MotionFileError: the file does not exist, cannot be read, is not a regular file (a
+            folder, a device such as ``/dev/zero``, a pipe), is larger than 1 MiB, is not
+            UTF-8, is not valid TOML, or says something invalid.
     """
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8-sig")  # editors on Windows may write a BOM
-    except FileNotFoundError:
+        text = read_text_limited(p, MAX_FILE_BYTES)
+    except UnreadableFileError as exc:
+        reason = "no such file" if exc.missing else f"cannot read the file: {exc}"
         raise MotionFileError(
-            str(p), 0, "no such file; expected a TOML motion file (see `so101sim run --help`)"
+            str(p), 0, f"{reason}; expected a TOML motion file (see `so101sim run --help`)"
         ) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise MotionFileError(str(p), 0, f"cannot read the file: {exc}") from None
     return parse_motion(text, path=str(p), units=units)
 
 

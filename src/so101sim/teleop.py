@@ -34,6 +34,7 @@ from .robot_helpers import Clock, check_fps, clock_for, sleep_until
 from .teleop_calibration import (
     CALIBRATION_FIELDS,
     LEADER_NAME,
+    MAX_CALIBRATION_BYTES,
     MAX_TICK,
     MOTOR_IDS,
     TICKS_PER_TURN,
@@ -284,6 +285,7 @@ __all__ = [
     "CALIBRATION_FIELDS",
     "DEFAULT_FPS",
     "LEADER_NAME",
+    "MAX_CALIBRATION_BYTES",
     "MAX_TICK",
     "MOTOR_IDS",
     "TICKS_PER_TURN",

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from .errors import CalibrationError
 from .model import default_units
+from .motionfile_lines import UnreadableFileError, read_text_limited
 from .units import DEG_PER_RAD, GRIPPER, GRIPPER_INDEX, JOINT_NAMES
 from .validation import check_count
 
@@ -24,6 +25,8 @@ MAX_TICK = TICKS_PER_TURN - 1  # 4095, LeRobot's max_res for the STS3215
 MOTOR_IDS: dict[str, int] = {name: i + 1 for i, name in enumerate(JOINT_NAMES)}
 """Servo id of each joint on LeRobot's SO-101 (shoulder_pan 1 ... gripper 6)."""
 LEADER_NAME = "so_leader"  # LeRobot's class name for the SO-101 leader (calibration folder)
+MAX_CALIBRATION_BYTES = 64 * 1024
+"""The largest calibration file read (LeRobot writes about 700 bytes)."""
 
 CALIBRATION_FIELDS: dict[str, tuple[int, int]] = {
     "id": (0, 253),  # Feetech ids (254 is the broadcast id)
@@ -112,23 +115,30 @@ def _parse_motor(name: str, entry: object) -> MotorCalibration:
 
 def load_calibration(path: str | Path) -> dict[str, MotorCalibration]:
     """Read a LeRobot calibration JSON file (e.g. ``~/.cache/huggingface/lerobot/calibration/
-    teleoperators/so_leader/<id>.json``).
+    teleoperators/so_leader/<id>.json``): a regular file of UTF-8 text, at most
+    :data:`MAX_CALIBRATION_BYTES`.
 
     Raises:
-        CalibrationError: the file is missing, not JSON, or not a valid SO-101 calibration.
+        CalibrationError: the file is missing, unreadable, not a regular file, too large, not
+            UTF-8 text, not JSON, or not a valid SO-101 calibration.
     """
     p = Path(path).expanduser()
+    expected = "expected LeRobot's calibration JSON for the leader arm"
     try:
-        text = p.read_text()
-    except OSError as exc:
+        text = read_text_limited(p, MAX_CALIBRATION_BYTES)
+    except UnreadableFileError as exc:
         raise CalibrationError(
-            f"cannot read the calibration file {str(p)!r} ({exc.strerror}); expected LeRobot's "
-            "calibration JSON for the leader arm"
+            f"cannot read the calibration file {str(p)!r} ({exc}); {expected}"
         ) from None
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise CalibrationError(f"calibration file {str(p)!r} is not valid JSON: {exc}") from None
+    except (RecursionError, ValueError) as exc:  # nested too deep, an integer too long
+        reason = "it nests too deep" if isinstance(exc, RecursionError) else str(exc)
+        raise CalibrationError(
+            f"calibration file {str(p)!r} cannot be read as JSON: {reason}; {expected}"
+        ) from None
     return parse_calibration(data)
 
 
