@@ -64,3 +64,11 @@ def test_starting_pose_is_not_in_collision():
     d.qpos[:6] = default_units().to_radians(default_units().pose_to_array(STARTING_POSE))
     mujoco.mj_forward(m, d)
     assert d.ncon == 0
+
+
+def test_a_folder_or_device_as_model_says_so(tmp_path):
+    from so101sim.model import load_model
+
+    for bad in (tmp_path, "/dev/null"):
+        with pytest.raises(ModelError, match="not a regular file"):
+            load_model(bad)

@@ -141,3 +141,10 @@ def test_commanded_path_is_what_a_run_commands_without_simulating():
     np.testing.assert_allclose(path, commanded, rtol=0, atol=1e-9)
     np.testing.assert_allclose(times, np.concatenate([s.times for s in r.segments]))
     assert sim.time == pytest.approx(6.0)
+
+
+def test_a_motion_longer_than_a_day_in_all_is_refused_before_it_runs(sim):
+    steps = [Hold(50_000.0), Hold(50_000.0)]
+    with pytest.raises(DurationError, match="in all"):
+        run_motion(sim.model, sim.data, steps)
+    assert sim.time == 0.0

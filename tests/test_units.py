@@ -170,3 +170,14 @@ def test_zero_d_arrays_are_numbers_and_huge_ints_are_refused():
     for bad in (np.array([1.0, 2.0]), np.array(True), "3", None):
         with pytest.raises(JointValueError, match="not a number"):
             parse_pose({"elbow_flex": bad}, partial=True)
+
+
+def test_an_integer_too_long_to_print_still_gives_the_error():
+    from so101sim.validation import check_duration
+
+    with pytest.raises(JointValueError, match="too large"):
+        parse_pose({"elbow_flex": 10**5000}, partial=True)
+    from so101sim.errors import DurationError
+
+    with pytest.raises(DurationError, match="too large"):
+        check_duration(10**5000)

@@ -50,6 +50,11 @@ def load_model(path: str | Path | None = None) -> mujoco.MjModel:
         ModelError: the file does not exist, does not compile, or lacks the SO-101 joints.
     """
     p = Path(path).expanduser() if path is not None else scene_path()
+    if p.exists() and not p.is_file():
+        raise ModelError(
+            f"model file {str(p)!r} is not a regular file; expected an MJCF file such as the "
+            f"shipped {str(scene_path())!r}"
+        )
     if not p.is_file():
         raise ModelError(
             f"model file {str(p)!r} does not exist; expected an MJCF file such as the shipped "

@@ -19,11 +19,12 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from .errors import DurationError
 from .model import arm_units
 from .profiles import PROFILES, Profile, get_profile, steps_for
 from .simulation import Observer, SegmentResult, Simulation
 from .units import STARTING_POSE, ZERO_POSE, Pose
-from .validation import check_duration
+from .validation import MAX_DURATION_S, check_duration
 
 log = logging.getLogger(__name__)
 
@@ -154,8 +155,13 @@ def validate_segments(
     segments before them end, so a point out of reach is found before the first one runs."""
     units = arm_units(m)
     current = None if start is None else np.asarray(start, dtype=float)
+    total = sum(check_duration(seg.duration, f"{seg.phase} duration") for seg in segments)
+    if total > MAX_DURATION_S:
+        raise DurationError(
+            f"the motion lasts {total:g} s in all; expected at most {MAX_DURATION_S:g} s "
+            "(one day of simulated time)"
+        )
     for seg in segments:
-        check_duration(seg.duration, f"{seg.phase} duration")
         if not isinstance(seg, Move):
             continue
         if seg.tip is None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import reprlib
 from collections.abc import Iterable
 
 from .errors import DurationError, RateError, SettingError
@@ -37,13 +38,21 @@ def is_real(value: object) -> bool:
     return not any(k in dtype for k in ("bool", "complex", "str", "object"))
 
 
+def shown(value: object) -> str:
+    """``repr(value)`` shortened for a message (a huge int or a long string stays readable)."""
+    if isinstance(value, int) and value.bit_length() > 64:
+        digits = len(str(value)) if value.bit_length() < 10_000 else "thousands of"
+        return f"an integer of {digits} digits"
+    return reprlib.repr(value)
+
+
 def _as_float(value: object, what: str, unit: str, expected: str, error: type[Exception]) -> float:
     if not is_real(value):
-        raise error(f"{what} = {value!r} is not a number; expected {expected}")
+        raise error(f"{what} = {shown(value)} is not a number; expected {expected}")
     try:
         v = float(value)  # type: ignore[arg-type]
     except OverflowError:  # an int too big for a float
-        raise error(f"{what} = {value!r} is too large; expected {expected}") from None
+        raise error(f"{what} = {shown(value)} is too large; expected {expected}") from None
     if not math.isfinite(v):
         raise error(f"{what} = {v}{unit} is not finite; expected {expected}")
     return v
@@ -159,10 +168,10 @@ def check_count(
         expected = f"{'an even' if even else 'a'} whole number{what_of} >= {minimum}{top}"
     ok = isinstance(value, numbers.Integral) and not isinstance(value, bool)
     if not ok:
-        raise error(f"{what} = {value!r} is not a whole number; expected {expected}")
+        raise error(f"{what} = {shown(value)} is not a whole number; expected {expected}")
     n = int(value)  # type: ignore[arg-type]
     if n < minimum or (maximum is not None and n > maximum) or (even and n % 2):
-        raise error(f"{what} = {n}{unit} is invalid; expected {expected}")
+        raise error(f"{what} = {shown(n)}{unit} is invalid; expected {expected}")
     return n
 
 
@@ -172,5 +181,5 @@ def check_choice(
     """``value`` if it is one of ``choices``, else raise listing them."""
     valid = list(choices)
     if not isinstance(value, str) or value not in valid:
-        raise error(f"unknown {what} {value!r}; valid {what}s are {', '.join(valid)}")
+        raise error(f"unknown {what} {shown(value)}; valid {what}s are {', '.join(valid)}")
     return value
