@@ -59,9 +59,10 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
             "runplan",
             "record_script",
             "handin",
+            "starter",
         ),
     ),
-    ("cli", ("cli", "__main__")),
+    ("cli", ("cli", "cli_*", "__main__")),
 ]
 
 

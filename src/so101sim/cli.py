@@ -24,6 +24,7 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 from . import __version__
+from .cli_tools import add_commands, split_script_args
 from .errors import So101SimError
 from .validation import check_duration
 
@@ -195,6 +196,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_check_options(_command(sub, "check", cmd_check, summary, model, strict))
     summary = "mirror a LeRobot SO-101 leader arm on the sim in real time (Ctrl-C stops)"
     _add_teleop_options(_command(sub, "teleop", cmd_teleop, summary, model, headless))
+    add_commands(sub, recording=recording, model=model)
     return parser
 
 
@@ -381,7 +383,10 @@ def cmd_teleop(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
+    argv, script_args = split_script_args(list(sys.argv[1:] if argv is None else argv))
     args = parser.parse_args(argv)
+    if script_args is not None:
+        args.script_args = [*args.script_args, *script_args]
     logging.basicConfig(
         level=logging.DEBUG if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
