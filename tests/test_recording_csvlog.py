@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 from recording_helpers import read_csv
 
 from so101sim import LAB_MOTION, STARTING_POSE, Simulation, run_motion
 from so101sim import recording as rec
+from so101sim.errors import OutputPathError
+from so101sim.simulation import Trace
 from so101sim.units import JOINT_NAMES
 
 
@@ -41,3 +45,45 @@ def test_csv_quotes_phase_names_with_commas(tmp_path):
         sim.hold(0.01, phase='wait, then "go"')
     _, rows = read_csv(path)
     assert len(rows) == 5 and rows[0][1] == 'wait, then "go"'
+
+
+needs_dev_full = pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full")
+
+
+@needs_dev_full
+def test_a_full_disk_stops_the_run_with_a_clear_error_and_leaves_no_file(tmp_path):
+    sim = Simulation()
+    path = tmp_path / "full.csv"
+    with (
+        pytest.raises(OutputPathError, match="No space left on device") as info,
+        rec.Recorder(sim, log=path) as r,
+    ):
+        r.log._file.tmp.symlink_to("/dev/full")  # every write fails as on a full disk
+        sim.hold(30.0)
+    assert "could not write the log" in str(info.value)
+    assert sim.time < 10.0  # the run stopped at the first failed write (a block of steps)
+    assert list(tmp_path.iterdir()) == [] and r.outputs == {}
+
+
+def test_the_log_streams_to_disk_in_flat_memory(tmp_path):
+    """Memory does not grow with the number of steps logged (blocks as the stepping sends)."""
+    import tracemalloc
+
+    model = Simulation().model
+    k = 4096
+    trace = Trace(np.arange(1, k + 1) * 0.002, np.zeros((k, 6)), np.zeros((k, 6)))
+
+    def peak(blocks: int) -> int:
+        log = rec.CsvLog(tmp_path / f"{blocks}.csv", model)
+        tracemalloc.start()
+        try:
+            for _ in range(blocks):
+                log.on_steps(trace, "hold")
+            return tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+            log.close()
+
+    small, large = peak(5), peak(50)
+    assert large - small < 1_000_000, (small, large)
+    assert len(read_csv(tmp_path / "50.csv")[1]) == 50 * k

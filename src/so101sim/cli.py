@@ -12,6 +12,15 @@ Nothing here decides anything: the checks, viewer or headless, and running are i
 (:mod:`so101sim.runplan` runs ``run`` and ``hold``). Each command imports what it needs when it
 runs, not at the top, to start fast (``so101sim --help`` imports no MuJoCo) and so that
 ``--record`` can choose the OpenGL backend before MuJoCo is first imported.
+
+Signals: while a command runs, SIGINT, SIGTERM and SIGHUP all raise :class:`Interrupted` (a
+KeyboardInterrupt), so each one finishes the output files as Ctrl-C does; one that comes while
+they are finished waits until they are (:class:`_Signals`). The exit status is then 128 + the
+signal's number (130 for Ctrl-C). The library installs no signal handler.
+
+Why over 400 lines: the signal handling belongs to the command line (the library never
+installs handlers), and a module of its own would need a layer of its own in
+``tests/test_architecture.py``; it is the block under "signals".
 """
 
 from __future__ import annotations
@@ -19,7 +28,12 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import math
+import os
+import signal
 import sys
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -83,23 +97,113 @@ def _progress_bar(frames: int | None) -> tqdm | None:
     )
 
 
+# ---------------------------------------------------------------------------- signals
+class Interrupted(KeyboardInterrupt):
+    """SIGINT, SIGTERM or SIGHUP, raised as a Ctrl-C is, so that each one finishes the files."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+class _Signals:
+    """While a command runs, SIGINT, SIGTERM and SIGHUP raise :class:`Interrupted`. A signal
+    that comes while the output files are finished (:attr:`finishing`), or within a second of
+    the last one raised (it is on its way there), waits in :attr:`waiting` instead: the files
+    are finished first. A third that waits gives them up (SystemExit)."""
+
+    NAMES = ("SIGINT", "SIGTERM", "SIGHUP")
+
+    def __init__(self) -> None:
+        self.finishing = False
+        self.waiting: list[int] = []
+        self._raised_at = -math.inf
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> _Signals:
+        self.finishing, self.waiting, self._raised_at = False, [], -math.inf
+        if threading.current_thread() is threading.main_thread():
+            for name in self.NAMES:
+                if (signum := getattr(signal, name, None)) is not None:
+                    self._previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for signum, previous in self._previous.items():
+            signal.signal(signum, previous)
+        self._previous.clear()
+
+    def _handle(self, signum: int, frame: object) -> None:
+        now = time.monotonic()
+        if not self.finishing and now - self._raised_at > 1.0:
+            self._raised_at = now
+            raise Interrupted(signum)
+        self.waiting.append(signum)
+        if len(self.waiting) >= 3:
+            _notice("so101sim: output files left unfinished\n")
+            raise SystemExit(128 + signum)
+        more = "twice more" if len(self.waiting) == 1 else "once more"
+        _notice(f"so101sim: finishing the output files first (signal {more} to drop them)\n")
+
+
+def _notice(text: str) -> None:
+    """Write to stderr from a signal handler (print() may be in the middle of a line)."""
+    with contextlib.suppress(OSError):
+        os.write(2, text.encode())
+
+
+def _say(text: str, *, err: bool = False) -> None:
+    """print(), except that a closed terminal (after SIGHUP) is not an error."""
+    with contextlib.suppress(OSError):
+        print(text, file=sys.stderr if err else sys.stdout, flush=True)
+
+
+def _signal_name(signum: int) -> str:
+    with contextlib.suppress(ValueError):
+        return signal.Signals(signum).name
+    return f"signal {signum}"
+
+
+SIGNALS = _Signals()
+"""The handlers :func:`main` installs while a command runs."""
+
+
 @contextlib.contextmanager
 def _reporting(recorder: Recorder, bar: tqdm | None) -> Iterator[None]:
-    """Close the recorder's files on the way out (also on Ctrl-C) and say what was written."""
-    interrupted = False
+    """Finish the recorder's files on the way out (also on Ctrl-C, SIGTERM, SIGHUP or an
+    error) and say what was written; signals that come meanwhile wait until it is done."""
     try:
         yield
-    except KeyboardInterrupt:
-        interrupted = True
+    except BaseException as exc:
+        SIGNALS.finishing = True  # first, and no call before it: a call may be interrupted
+        _finish_outputs(recorder, bar, exc)
         raise
-    finally:
-        if bar is not None:
+    SIGNALS.finishing = True
+    _finish_outputs(recorder, bar, None)
+
+
+def _say_written(recorder: Recorder, so_far: str) -> None:
+    for key, path in recorder.outputs.items():
+        extra = f" ({recorder.video.frames} frames)" if key == "video" and recorder.video else ""
+        _say(f"wrote the {key} {so_far}to {path}{extra}")
+
+
+def _finish_outputs(recorder: Recorder, bar: tqdm | None, pending: BaseException | None) -> None:
+    """Close the recorder and print what it wrote; raise what failed (a full disk), unless
+    ``pending`` (what stopped the run) is on its way out: then print it."""
+    if bar is not None:
+        with contextlib.suppress(OSError):  # a terminal that hung up
             bar.close()
-        written = recorder.close()
-        what = "so far " if interrupted else ""
-        for key, path in written.items():
-            extra = f" ({recorder.video.frames} frames)" if key == "video" else ""
-            print(f"wrote the {key} {what}to {path}{extra}")
+    # errors are in recorder.errors; an interrupt is already on its way (SIGNALS.waiting)
+    with contextlib.suppress(So101SimError, KeyboardInterrupt):
+        recorder.close()
+    _say_written(recorder, "so far " if pending is not None else "")
+    errors = [e for e in recorder.errors.values() if e is not pending]
+    first = errors.pop(0) if errors and pending is None else None
+    for error in errors:
+        _say(f"so101sim: error: {error}", err=True)
+    if first is not None:
+        raise first
 
 
 # ---------------------------------------------------------------------------- parser
@@ -391,14 +495,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         level=logging.DEBUG if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
-    try:
-        return int(args.func(args) or 0)
-    except So101SimError as exc:
-        print(f"so101sim: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("so101sim: interrupted", file=sys.stderr)
-        return 130
+    with SIGNALS:
+        try:
+            code = int(args.func(args) or 0)
+        except So101SimError as exc:
+            _say(f"so101sim: error: {exc}", err=True)
+            code = 2
+        except KeyboardInterrupt as exc:
+            signum = getattr(exc, "signum", signal.SIGINT)
+            _say(f"so101sim: interrupted ({_signal_name(signum)})", err=True)
+            return 128 + signum
+        if SIGNALS.waiting:  # came while the files were finished
+            signum = SIGNALS.waiting[0]
+            _say(f"so101sim: interrupted ({_signal_name(signum)})", err=True)
+            return 128 + signum
+        return code
 
 
 if __name__ == "__main__":

@@ -9,10 +9,14 @@ write to it, and all of it is clocked by *simulated* time: a 6 s motion at 30 fr
 ...     sim.move_to(ZERO_POSE, 2.0, phase="to_zero")
 ...     sim.hold(2.0)
 
-Every output path is checked (folder exists and is writable, file absent unless
-``force=True``) before anything runs. Files are written under a temporary name in the same
-folder and renamed when closed, also after Ctrl-C or an error, so a path holds either a
-complete, playable file of what ran or nothing.
+Every output path is checked (folder exists and files can be created there, name within the
+file system's limit, file absent unless ``force=True``, never a device or a pipe) before
+anything runs. Files are written under a temporary name in the same folder and renamed when
+closed (a video only after ffmpeg succeeded and the file was read back), also after Ctrl-C or
+an error, so a path holds either a complete, playable file of what ran or nothing. A file
+that cannot be written (a full disk) raises :class:`~so101sim.errors.OutputPathError`. The log
+streams to disk and the plot keeps a bounded envelope of the steps, so memory stays flat
+however long the run.
 
 Rendering uses ``mujoco.Renderer`` on a private copy of the model (its offscreen buffer raised
 to the frame size), fed the simulation's joint angles: the physics model is never touched.
@@ -25,11 +29,13 @@ when the first renderer starts (:func:`so101sim.gl.prepare_for_rendering`).
 The modules, one job each:
 
 - :mod:`.settings`: :class:`VideoSettings`, quality presets, cameras;
-- :mod:`.paths`: output path checks, files written under a temporary name;
+- :mod:`.paths`: output path checks, files written under a temporary name, write errors;
 - :mod:`.draft`: the private render model and the ``draft`` meshes;
 - :mod:`.frames`: :class:`FrameRenderer` (offscreen frames) and the caption;
+- :mod:`.encoder`: the ffmpeg process a video is piped to, and reading a video back;
 - :mod:`.video`: :class:`VideoRecorder` (MP4), :func:`video_frames`;
 - :mod:`.csvlog`: :class:`CsvLog`, :func:`csv_columns`;
+- :mod:`.envelope`: a bounded summary of a run's steps (smallest and largest per bucket);
 - :mod:`.plot`: :class:`RunLog`, :class:`TraceCollector`, :func:`plot_run`;
 - :mod:`.recorder`: :class:`Recorder`, all of the above at once.
 """
@@ -38,11 +44,12 @@ from .csvlog import CsvLog, csv_columns
 from .draft import SHIPPED_MODEL_FILES, draft_mesh_dir, draft_source, render_model
 from .frames import FrameRenderer
 from .paths import check_output_path
-from .plot import PLOT_SUFFIXES, RunLog, TraceCollector, plot_run
+from .plot import MAX_PLOT_POINTS, PLOT_SUFFIXES, RunLog, TraceCollector, plot_run
 from .recorder import Recorder
 from .settings import (
     FREE_CAMERA,
     MAX_FPS,
+    MAX_FRAME_SIZE,
     QUALITIES,
     QUALITY_CHOICES,
     VideoSettings,
@@ -55,6 +62,8 @@ from .video import VIDEO_SUFFIXES, VideoRecorder, video_frames
 __all__ = [
     "FREE_CAMERA",
     "MAX_FPS",
+    "MAX_FRAME_SIZE",
+    "MAX_PLOT_POINTS",
     "PLOT_SUFFIXES",
     "QUALITIES",
     "QUALITY_CHOICES",

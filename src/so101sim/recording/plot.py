@@ -1,6 +1,8 @@
 """Plotting a run (:func:`plot_run`): per joint the commanded and measured angle over time, the
 phases shaded, and the tracking error of every joint. The steps come from a finished run
-(:class:`RunLog`) or are collected while it runs (:class:`TraceCollector`)."""
+(:class:`RunLog`) or are collected while it runs (:class:`TraceCollector`); a long run is drawn
+from its envelope (:mod:`.envelope`: each bucket's smallest and largest value, so spikes stay),
+at most :data:`MAX_PLOT_POINTS` points per curve, however long the run."""
 
 from __future__ import annotations
 
@@ -16,9 +18,14 @@ from ..errors import RecordingError
 from ..model import arm_units
 from ..simulation import Observer, Trace
 from ..units import GRIPPER_INDEX, JOINT_NAMES, format_value
+from ..validation import check_count
+from .envelope import MAX_BUCKETS, Envelope
 from .paths import check_output_path, write_atomically
 
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
+MIN_PLOT_SIZE = 200
+MAX_PLOT_SIZE = 8192
+"""A plot's width and height in pixels: from :data:`MIN_PLOT_SIZE` to this."""
 _PHASE_COLOURS = ("#4c72b0", "#dd8452", "#55a868", "#c44e52", "#8172b3", "#937860")
 
 
@@ -28,13 +35,19 @@ def _empty_arrays() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 @dataclass
 class RunLog:
-    """Per-step arrays of a run in the arm's units, for plotting: ``times`` (n,), ``commanded``
-    and ``measured`` (n, 6), ``phases`` [(name, start_time, end_time)]."""
+    """Arrays of a run in the arm's units, for plotting: ``times`` (n,), ``commanded`` and
+    ``measured`` (n, 6), ``phases`` [(name, start_time, end_time)], and ``errors`` (n, 6), the
+    tracking error to draw (None: ``|commanded - measured|``).
+
+    A run's per-step arrays, or (from :class:`TraceCollector` or :meth:`bounded`) an envelope
+    of them: each bucket's smallest and largest value, at most :data:`MAX_PLOT_POINTS` points.
+    """
 
     times: np.ndarray
     commanded: np.ndarray
     measured: np.ndarray
     phases: list[tuple[str, float, float]] = field(default_factory=list)
+    errors: np.ndarray | None = None
 
     @classmethod
     def from_result(cls, result: Any) -> RunLog:
@@ -49,38 +62,69 @@ class RunLog:
             [(s.phase, s.start_time, s.end_time) for s in segments],
         )
 
+    @property
+    def tracking_errors(self) -> np.ndarray:
+        return np.abs(self.commanded - self.measured) if self.errors is None else self.errors
+
+    def bounded(self, max_buckets: int = MAX_BUCKETS) -> RunLog:
+        """This log if it has at most ``2 * max_buckets`` points, else its envelope."""
+        if len(self.times) <= 2 * max_buckets:
+            return self
+        env = Envelope.empty(3, len(JOINT_NAMES), max_buckets)
+        values = np.stack([self.commanded, self.measured, self.tracking_errors], axis=1)
+        return _from_envelope(env.add(self.times, values), self.phases)
+
+
+MAX_PLOT_POINTS = 2 * MAX_BUCKETS
+"""Points per joint and curve a plot draws at most (a bucket's minimum and maximum)."""
+
+
+def _from_envelope(env: Envelope, phases: list[tuple[str, float, float]]) -> RunLog:
+    times, values = env.points()
+    return RunLog(times, values[:, 0], values[:, 1], list(phases), values[:, 2])
+
 
 class TraceCollector(Observer):
-    """Keeps every step of a run, for a plot made after it (see :meth:`run_log`)."""
+    """Keeps a run's steps for a plot made after it (see :meth:`run_log`): every step of a run
+    up to ``max_buckets`` steps, else an :class:`~.envelope.Envelope` of them (the smallest and
+    largest value per bucket of steps), so memory stays flat however long the run."""
 
-    def __init__(self, model: mujoco.MjModel) -> None:
+    def __init__(self, model: mujoco.MjModel, *, max_buckets: int = MAX_BUCKETS) -> None:
         self.units = arm_units(model)
         self.timestep = float(model.opt.timestep)
-        self._blocks: list[tuple[Trace, str]] = []
+        self.max_buckets = check_count(max_buckets, "max_buckets", minimum=2, maximum=10**7)
+        # (envelope, phases), replaced as a whole: an interruption leaves the last whole state
+        self._state: tuple[Envelope | None, tuple[tuple[str, float, float], ...]] = (None, ())
+
+    @property
+    def steps(self) -> int:
+        """Steps collected."""
+        env = self._state[0]
+        return 0 if env is None else env.steps
 
     def on_steps(self, trace: Trace, phase: str) -> None:
-        if len(trace):
-            block = Trace(trace.time.copy(), trace.ctrl.copy(), trace.qpos.copy())
-            self._blocks.append((block, phase))
+        if not len(trace.time):
+            return
+        env, phases = self._state
+        if env is None:
+            env = Envelope.empty(3, len(JOINT_NAMES), self.max_buckets)
+        cmd = self.units.from_radians(trace.ctrl)
+        meas = self.units.from_radians(trace.qpos)
+        values = np.stack([cmd, meas, np.abs(cmd - meas)], axis=1)
+        start, end = float(trace.time[0]) - self.timestep, float(trace.time[-1])
+        if phases and phases[-1][0] == phase:
+            phases = (*phases[:-1], (phase, phases[-1][1], end))
+        else:
+            phases = (*phases, (phase, start, end))
+        self._state = (env.add(trace.time, values), phases)
 
     def run_log(self) -> RunLog:
-        """The steps so far; consecutive blocks of the same phase make one shaded phase."""
-        if not self._blocks:
+        """The steps so far (or their envelope); consecutive blocks of the same phase make one
+        shaded phase."""
+        env, phases = self._state
+        if env is None:
             return RunLog(*_empty_arrays(), [])
-        times = np.concatenate([b.time for b, _ in self._blocks])
-        cmd = self.units.from_radians(np.concatenate([b.ctrl for b, _ in self._blocks]))
-        meas = self.units.from_radians(np.concatenate([b.qpos for b, _ in self._blocks]))
-        return RunLog(times, cmd, meas, self._phases())
-
-    def _phases(self) -> list[tuple[str, float, float]]:
-        phases: list[tuple[str, float, float]] = []
-        for block, phase in self._blocks:
-            start, end = float(block.time[0]) - self.timestep, float(block.time[-1])
-            if phases and phases[-1][0] == phase:
-                phases[-1] = (phase, phases[-1][1], end)
-            else:
-                phases.append((phase, start, end))
-        return phases
+        return _from_envelope(env, list(phases))
 
 
 def plot_run(
@@ -104,7 +148,13 @@ def plot_run(
     from matplotlib.figure import Figure
 
     p = check_output_path(path, force=force, what="plot", suffixes=PLOT_SUFFIXES)
+    size = {"width": width, "height": height}
+    for name, value in size.items():
+        check_count(value, name, minimum=MIN_PLOT_SIZE, maximum=MAX_PLOT_SIZE, unit=" pixels",
+                    error=RecordingError)  # fmt: skip
+    check_count(dpi, "dpi", minimum=10, maximum=1000, error=RecordingError)
     run = result if isinstance(result, RunLog) else RunLog.from_result(result)
+    run = run.bounded()
     if len(run.times) == 0:
         raise RecordingError("nothing to plot: the run took no steps; expected a run of > 0 s")
     fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi, layout="constrained")
@@ -125,7 +175,7 @@ def plot_run(
     _shade_phases([*axes, err_ax], err_ax, run)
     fig.suptitle(title or "so101sim run: commanded vs measured joint angles")
     fmt = p.suffix.lstrip(".").lower()
-    return write_atomically(p, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt))
+    return write_atomically(p, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt), what="plot")
 
 
 def _plot_joint(ax: Any, run: RunLog, i: int) -> None:
@@ -151,7 +201,7 @@ def _value_range(run: RunLog, i: int) -> tuple[float, float]:
 
 def _plot_errors(ax: Any, run: RunLog) -> None:
     """The tracking error of every joint over time, each labelled with its largest value."""
-    err = np.abs(run.commanded - run.measured)
+    err = run.tracking_errors
     for i, name in enumerate(JOINT_NAMES):
         largest = format_value(name, err[:, i].max(), digits=2)
         ax.plot(run.times, err[:, i], lw=1.0, label=f"{name} (max {largest})")

@@ -16,6 +16,8 @@ QUALITY_CHOICES = ("auto", *QUALITIES)
 FREE_CAMERA = "free"
 MAX_FPS = 240.0
 MIN_FRAME_SIZE = 16
+MAX_FRAME_SIZE = 4096
+"""The largest frame width or height, in pixels (4K; a 4096×4096 frame is 48 MiB of RGB)."""
 
 
 @dataclass(frozen=True)
@@ -39,10 +41,12 @@ class VideoSettings:
                 getattr(self, name),
                 name,
                 minimum=MIN_FRAME_SIZE,
+                maximum=MAX_FRAME_SIZE,
                 even=True,
                 unit=" pixels",
                 expected=(
-                    f"an even whole number >= {MIN_FRAME_SIZE} (H.264 needs even frame sizes)"
+                    f"an even whole number of pixels from {MIN_FRAME_SIZE} to {MAX_FRAME_SIZE} "
+                    "(H.264 needs even frame sizes)"
                 ),
                 error=RecordingError,
             )

@@ -9,14 +9,15 @@ import math
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import mujoco
 
-from ..errors import RecordingError
+from ..errors import OutputPathError, RecordingError
 from ..simulation import Observer, Trace
+from .encoder import FfmpegEncoder, count_frames
 from .frames import FrameRenderer
-from .paths import PendingFile, check_output_path
+from .paths import PendingFile, check_output_path, write_error
 from .settings import VideoSettings, check_camera
 
 log = logging.getLogger(__name__)
@@ -33,11 +34,12 @@ def video_frames(duration: float, fps: float) -> int:
 
 class VideoRecorder(Observer):
     """An observer that renders a frame every 1/fps s of simulated time and writes an H.264 MP4
-    (imageio-ffmpeg, whose wheel ships ffmpeg).
+    (with the ffmpeg of the imageio-ffmpeg wheel: :class:`~.encoder.FfmpegEncoder`).
 
     The first frame is the state when the recorder is first called; then one frame each time
     simulated time reaches the next frame's time. ``progress`` (e.g. a tqdm bar's ``update``) is
-    called with 1 per frame. :meth:`close` finishes the file (also after an interruption).
+    called with 1 per frame. :meth:`close` finishes the file (also after an interruption) and
+    reads it back before it is moved into place.
     """
 
     def __init__(
@@ -63,9 +65,12 @@ class VideoRecorder(Observer):
         self._last_time = -math.inf
         self._frames_since_anchor = 0
         self._renderer: FrameRenderer | None = None
-        self._writer: Any = None
+        self._encoder: FfmpegEncoder | None = None
         self._file: PendingFile | None = None
         self.closed = False
+        self._finished = False
+        self._written: Path | None = None
+        self._verified: int | None = None  # frames the file holds, read back
         self._model = model
 
     # -- timeline
@@ -91,26 +96,21 @@ class VideoRecorder(Observer):
     # -- frames
     def open(self) -> None:
         """Start the renderer and the encoder (done by the first frame if not called)."""
-        if self._writer is not None:
+        if self._encoder is not None:
             return
         if self.closed:
             raise RecordingError(f"the video {str(self.path)!r} is already closed")
-        import imageio_ffmpeg  # imported here only to keep start-up fast
-
         s = self.settings
-        self._renderer = FrameRenderer(self._model, s)
+        if self._renderer is None:
+            self._renderer = FrameRenderer(self._model, s)
         self._file = PendingFile(self.path)
-        writer = imageio_ffmpeg.write_frames(
-            str(self._file.tmp),
-            (s.width, s.height),
-            fps=float(s.fps),
-            codec="libx264",
-            quality=None,
-            macro_block_size=2,
-            output_params=["-preset", self.preset, "-crf", str(self.crf)],
-        )
-        writer.send(None)
-        self._writer = writer
+        try:
+            self._encoder = FfmpegEncoder(
+                self._file.tmp, s.width, s.height, s.fps, preset=self.preset, crf=self.crf
+            )
+        except OSError as exc:  # ffmpeg could not start
+            self._file.discard()
+            raise write_error("video", self.path, exc) from exc
         log.debug(
             "recording %s (%dx%d, %g fps, %s)", self.path, s.width, s.height, s.fps, s.quality
         )
@@ -119,31 +119,82 @@ class VideoRecorder(Observer):
         return f"t = {d.time:6.2f} s   {self.phase}".rstrip()
 
     def write_frame(self, d: mujoco.MjData) -> None:
-        """Render ``d``'s state and append it to the video."""
+        """Render ``d``'s state and append it to the video.
+
+        Raises:
+            OutputPathError: ffmpeg stopped taking frames (a full disk): the run should stop.
+        """
         self.open()
-        assert self._renderer is not None
+        assert self._renderer is not None and self._encoder is not None
         frame = self._renderer.render(d, self.caption(d) if self.settings.caption else None)
-        self._writer.send(frame)
+        try:
+            self._encoder.send(frame)
+        except OutputPathError as exc:
+            self._fail(str(exc))
         self.frames += 1
         if self.progress is not None:
             self.progress(1)
 
     def close(self) -> Path | None:
-        """Finish the file and move it into place; return its path (None if no frame was
-        written: then no file is made)."""
-        if self.closed:
-            return self.path if self.frames else None
+        """Finish the file, read it back and move it into place; return its path (None if no
+        frame was written: then no file is made). :attr:`frames` is then the number of frames
+        the file holds, as read back.
+
+        May be interrupted (Ctrl-C) and called again: it goes on where it stopped.
+
+        Raises:
+            OutputPathError: ffmpeg failed (a full disk) or the file does not open; nothing is
+                left at the path.
+        """
+        if self._finished:
+            return self._written
         self.closed = True
         if self._renderer is not None:
             self._renderer.close()
-        if self._writer is None or self._file is None:
-            return None
+            self._renderer = None
+        if self._encoder is not None and self._file is not None:
+            self._written = self._finish_file(self._encoder, self._file)
+        self._finished = True
+        return self._written
+
+    def _finish_file(self, encoder: FfmpegEncoder, file: PendingFile) -> Path | None:
+        if file.committed:  # done, then interrupted before it was noted
+            return file.path
+        status = encoder.finish()  # ffmpeg writes the MP4 index and exits
+        if status != 0 or encoder.error is not None:
+            self._fail(encoder.failure())
+        if self._verified is None:
+            try:
+                self._verified = count_frames(file.tmp) if encoder.sent else 0
+            except OutputPathError as exc:
+                self._fail(str(exc))
+        frames = self._verified
+        if encoder.sent and not frames:
+            self._fail(f"ffmpeg wrote no frame of the {encoder.sent} it was sent")
+        if frames != encoder.sent:
+            log.warning("%s holds %d frames; %d were sent", self.path, frames, encoder.sent)
+        self.frames = frames
         try:
-            self._writer.close()  # ffmpeg writes the MP4 index and exits
-        except BaseException:
-            self._file.discard()
-            raise
-        written = self._file.finish(keep=self.frames > 0)
+            written = file.finish(keep=frames > 0)
+        except OSError as exc:
+            self._fail(exc)
+        encoder.close_messages()
         if written is not None:
-            log.debug("wrote %d frames to %s", self.frames, self.path)
+            log.debug("wrote %d frames to %s", frames, self.path)
         return written
+
+    def _fail(self, why: str | OSError) -> NoReturn:
+        self.abandon()
+        self._finished = True
+        raise write_error("video", self.path, why)
+
+    def abandon(self) -> None:
+        """Stop ffmpeg and remove the unfinished file (nothing is left at the path)."""
+        self.closed = True
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        if self._encoder is not None and self._encoder.proc.poll() is None:
+            self._encoder.kill()
+        if self._file is not None:
+            self._file.discard()
