@@ -20,6 +20,7 @@ import mujoco
 import numpy as np
 
 from .errors import SettingError
+from .model import arm_index, arm_units
 from .validation import check_choice, check_range
 
 NAMED_VIEWS: dict[str, tuple[float, float]] = {
@@ -101,6 +102,38 @@ def arm_points(model: mujoco.MjModel, qpos_frames: Iterable[np.ndarray]) -> np.n
             radii = model.geom_rbound[geoms][:, None, None]
             chunks.append((centres[:, None, :] + offsets[None] * radii).reshape(-1, 3))
     return np.vstack(chunks) if chunks else np.zeros((0, 3))
+
+
+WORKSPACE_SAMPLES = 200
+"""Random poses :func:`workspace_frames` samples when the run's sweep is not known."""
+
+
+def workspace_frames(model: mujoco.MjModel, samples: int = WORKSPACE_SAMPLES) -> list[np.ndarray]:
+    """``qpos`` vectors of random in-limit arm poses (seeded: the same every time), standing in
+    for the run's sweep when it is not known before the run (a script recorded as it runs):
+    a view fitted to them keeps the arm in frame whatever it does."""
+    idx = arm_index(model)
+    rng = np.random.default_rng(0)
+    frames = []
+    for _ in range(samples):
+        q = model.qpos0.copy()
+        q[idx.qpos] = rng.uniform(idx.lower, idx.upper)
+        frames.append(q)
+    return frames
+
+
+def sweep_frames(model: mujoco.MjModel, targets: np.ndarray, every: int = 25) -> list[np.ndarray]:
+    """``qpos`` vectors for every ``every``-th row of ``targets`` (arm units, (n, 6), e.g. a
+    motion's commanded path) and the last: the sweep of a run known before it runs."""
+    idx = arm_index(model)
+    units = arm_units(model)
+    rows = np.asarray(targets, dtype=float)[[*range(0, len(targets), every), -1]]
+    frames = []
+    for q_arm in units.to_radians(rows):
+        q = model.qpos0.copy()
+        q[idx.qpos] = q_arm
+        frames.append(q)
+    return frames
 
 
 def body_positions(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:

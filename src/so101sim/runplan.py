@@ -23,8 +23,9 @@ from typing import Any
 
 import mujoco
 
+from .framing import sweep_frames
 from .model import arm_units, load_model
-from .motion import RunResult, Segment, run_motion, validate_segments
+from .motion import RunResult, Segment, commanded_path, run_motion, validate_segments
 from .recording import Recorder, VideoSettings, video_frames
 from .simulation import Observer, Pacer, Simulation, ViewerObserver
 from .trajectory import check_limited_moves
@@ -116,9 +117,14 @@ def prepare_run(
         check_strict(load_model(model), segments, start)
     pacer = Pacer(speed)  # checks the speed before anything opens
     sim = Simulation(model, initial_pose=start)
-    validate_segments(sim.model, segments)  # every target and duration, before anything runs
+    # every target and duration, before anything runs (tip moves planned in full)
+    validate_segments(sim.model, segments, start=sim.commanded_array())
     recorder = None
     if outputs is not None and outputs.wanted:
+        sweep = None
+        if outputs.video is not None:  # the camera frames what the motion will sweep
+            _, path = commanded_path(sim.model, segments, start)
+            sweep = sweep_frames(sim.model, path)
         recorder = Recorder(  # checks every path and setting
             sim,
             video=outputs.video,
@@ -126,6 +132,7 @@ def prepare_run(
             log=outputs.log,
             settings=outputs.settings.validated(),
             force=outputs.force,
+            sweep=sweep,
         )
     return PreparedRun(sim, tuple(segments), pacer, choose_viewer(headless), recorder)
 

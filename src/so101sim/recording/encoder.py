@@ -55,15 +55,17 @@ class FfmpegEncoder:
         *,
         preset: str = "veryfast",
         crf: int = 23,
+        metadata: dict[str, str] | None = None,
     ) -> None:
         self.path = path
+        tags = [a for k, v in (metadata or {}).items() for a in ("-metadata", f"{k}={v}")]
         self.size = (int(height), int(width), 3)
         rate = Fraction(float(fps)).limit_denominator(1001)
         cmd = [
             ffmpeg_exe(), "-y", "-nostdin", "-v", "error",
             "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-r", str(rate),
             "-i", "-", "-an", "-vcodec", "libx264", "-pix_fmt", "yuv420p",
-            "-preset", preset, "-crf", str(crf), str(path),
+            "-preset", preset, "-crf", str(crf), *tags, str(path),
         ]  # fmt: skip
         # ffmpeg's messages, kept for an error; open as long as the encoder is
         self._messages: IO[bytes] = tempfile.TemporaryFile()  # noqa: SIM115

@@ -9,12 +9,14 @@ model is never touched. The OpenGL backend is chosen when the first renderer sta
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import mujoco
 import numpy as np
 
 from .. import gl
 from ..errors import RenderBackendError
-from ..viewer import frame_arm
+from ..framing import view_for_run, workspace_frames
 from .draft import render_model
 from .settings import FREE_CAMERA, VideoSettings, check_camera, resolve_quality
 
@@ -67,8 +69,15 @@ class FrameRenderer:
         RenderBackendError: no OpenGL backend works here (the message says what to install).
     """
 
-    def __init__(self, model: mujoco.MjModel, settings: VideoSettings | None = None) -> None:
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        settings: VideoSettings | None = None,
+        *,
+        sweep: Sequence[np.ndarray] | None = None,
+    ) -> None:
         self.settings = s = (settings or VideoSettings()).validated()
+        self.sweep = sweep
         check_camera(model, s.camera)
         self.model = model
         gl.prepare_for_rendering()
@@ -93,10 +102,25 @@ class FrameRenderer:
         return renderer
 
     def _camera(self) -> mujoco.MjvCamera | str:
-        if self.settings.camera != FREE_CAMERA:
-            return self.settings.camera
+        """A named camera of the model, or the free camera fitted to the run's ``sweep`` (the
+        arm's joint positions over the run; when it is not known, over its whole workspace)."""
+        s = self.settings
+        if s.camera != FREE_CAMERA:
+            return s.camera
+        sweep = self.sweep if self.sweep is not None else workspace_frames(self.model)
+        view = view_for_run(
+            self.model,
+            sweep,
+            s.width,
+            s.height,
+            azimuth=s.azimuth,
+            elevation=s.elevation,
+            distance=s.distance,
+            lookat=s.lookat,
+            view=s.view,
+        )
         camera = mujoco.MjvCamera()
-        frame_arm(camera)
+        view.apply(camera)
         return camera
 
     def render(self, d: mujoco.MjData, caption: str | None = None) -> np.ndarray:
@@ -112,6 +136,8 @@ class FrameRenderer:
         mujoco.mj_camlight(rm, rd)
         self.renderer.update_scene(rd, camera=self.camera)
         self.renderer.render(out=self.frame)
+        if self.settings.title:
+            caption = f"{self.settings.title}   {caption or ''}".rstrip()
         if self._caption is not None and caption:
             self._caption.draw(self.frame, caption)
         return self.frame

@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import Any
 
 import mujoco
+import numpy as np
 
 from ..errors import RecordingError, So101SimError
 from ..simulation import Observer
@@ -51,6 +52,7 @@ class Recorder:
         force: bool = False,
         progress: Callable[[int], Any] | None = None,
         plot_size: tuple[int, int] = (1280, 960),
+        sweep: Sequence[np.ndarray] | None = None,
     ) -> None:
         self.sim, self.model = _target(target)
         if settings is not None and not isinstance(settings, VideoSettings):
@@ -63,7 +65,7 @@ class Recorder:
         self.plot_path = _checked_plot_path(plot, force)
         self.plot_size = _checked_plot_size(plot_size)
         self.force = force
-        self.video = _video_recorder(video, self.model, self.settings, force, progress)
+        self.video = _video_recorder(video, self.model, self.settings, force, progress, sweep)
         self.log = CsvLog(log, self.model, force=force) if log is not None else None
         self.collector = TraceCollector(self.model) if plot is not None else None
         # the collector first: it cannot fail, so the plot has every step that ran
@@ -223,7 +225,8 @@ def _video_recorder(
     settings: VideoSettings,
     force: bool,
     progress: Callable[[int], Any] | None,
+    sweep: Sequence[np.ndarray] | None,
 ) -> VideoRecorder | None:
     if video is None:
         return None
-    return VideoRecorder(video, model, settings, force=force, progress=progress)
+    return VideoRecorder(video, model, settings, force=force, progress=progress, sweep=sweep)

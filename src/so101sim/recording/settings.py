@@ -9,6 +9,7 @@ import mujoco
 
 from .. import gl
 from ..errors import CameraError, RecordingError
+from ..framing import NAMED_VIEWS
 from ..validation import check_choice, check_count, check_range
 
 QUALITIES = ("draft", "full")
@@ -25,7 +26,13 @@ class VideoSettings:
     """How a video is rendered: frame size in pixels, frames per simulated second, camera
     ("free" = the viewer's default view of the arm, or a camera named in the model), quality
     preset ("draft", "full", or "auto": draft when OpenGL renders on the CPU, full on a GPU) and
-    whether a caption (time, phase) is drawn."""
+    whether a caption (time, phase) is drawn.
+
+    With the free camera, the view is fitted to the space the arm sweeps during the run
+    (:mod:`so101sim.framing`), seen from the named ``view`` ("default", "front", "side",
+    "top") or from ``azimuth``/``elevation`` (degrees); ``distance`` (m) and ``lookat``
+    (x, y, z in m) override the fitted ones. ``title`` (e.g. the student's name) is drawn in
+    the caption and written into the video's metadata."""
 
     width: int = 640
     height: int = 480
@@ -33,6 +40,12 @@ class VideoSettings:
     camera: str = FREE_CAMERA
     quality: str = "auto"
     caption: bool = True
+    title: str | None = None
+    view: str = "default"
+    azimuth: float | None = None
+    elevation: float | None = None
+    distance: float | None = None
+    lookat: tuple[float, float, float] | None = None
 
     def validated(self) -> VideoSettings:
         """Return self if every field is valid, else raise RecordingError saying what to use."""
@@ -59,6 +72,21 @@ class VideoSettings:
             error=RecordingError,
         )
         check_quality(self.quality, QUALITY_CHOICES)
+        check_choice(self.view, "view", NAMED_VIEWS, error=RecordingError)
+        for name, low, high in (
+            ("azimuth", -360, 360),
+            ("elevation", -90, 90),
+            ("distance", 0.01, 100),
+        ):
+            if getattr(self, name) is not None:
+                check_range(getattr(self, name), name, low=low, high=high, error=RecordingError)
+        if self.lookat is not None:
+            if len(self.lookat) != 3:
+                raise RecordingError(f"lookat = {self.lookat!r}; expected three numbers X,Y,Z (m)")
+            for v in self.lookat:
+                check_range(v, "lookat", low=-100, high=100, error=RecordingError)
+        if self.title is not None and (not isinstance(self.title, str) or len(self.title) > 200):
+            raise RecordingError("title must be text of at most 200 characters")
         return self
 
 

@@ -7,11 +7,12 @@ from __future__ import annotations
 import logging
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
 import mujoco
+import numpy as np
 
 from ..errors import OutputPathError, RecordingError
 from ..simulation import Observer, Trace
@@ -52,8 +53,10 @@ class VideoRecorder(Observer):
         progress: Callable[[int], Any] | None = None,
         preset: str = "veryfast",
         crf: int = 23,
+        sweep: Sequence[np.ndarray] | None = None,
     ) -> None:
         self.settings = (settings or VideoSettings()).validated()
+        self.sweep = sweep  # the arm's joint positions over the run, when known (framing)
         self.path = check_output_path(path, force=force, what="video", suffixes=VIDEO_SUFFIXES)
         check_camera(model, self.settings.camera)
         self.progress = progress
@@ -102,11 +105,17 @@ class VideoRecorder(Observer):
             raise RecordingError(f"the video {str(self.path)!r} is already closed")
         s = self.settings
         if self._renderer is None:
-            self._renderer = FrameRenderer(self._model, s)
+            self._renderer = FrameRenderer(self._model, s, sweep=self.sweep)
         self._file = PendingFile(self.path)
         try:
             self._encoder = FfmpegEncoder(
-                self._file.tmp, s.width, s.height, s.fps, preset=self.preset, crf=self.crf
+                self._file.tmp,
+                s.width,
+                s.height,
+                s.fps,
+                preset=self.preset,
+                crf=self.crf,
+                metadata={"title": s.title} if s.title else None,
             )
         except OSError as exc:  # ffmpeg could not start
             self._file.discard()
