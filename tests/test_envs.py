@@ -5,6 +5,7 @@ import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import gymnasium as gym
 import imageio.v3 as iio
@@ -229,3 +230,29 @@ def test_human_render_mode_and_the_full_check_env_under_a_display(xvfb):
     )
     assert out.returncode == 0, out.stderr
     assert "human ok" in out.stdout
+
+
+def test_the_expert_holds_still_when_the_cube_is_out_of_reach():
+    env = PickCubeEnv(episode_seconds=1.0)
+    obs, _ = env.reset(seed=0, options={"placements": {"cube": (0.5, 0.4, 0.0)}})
+    np.testing.assert_allclose(obs["environment_state"][:3], [0.5, 0.4, 0.0125], atol=1e-6)
+    expert = expert_for(env)
+    done = False
+    while not done:
+        obs, _, terminated, truncated, info = env.step(expert.act(obs))
+        done = terminated or truncated
+    assert truncated and not info["is_success"] and expert.phase == "hold"
+
+
+def test_the_pick_cube_example_runs_and_succeeds():
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    example = Path(__file__).resolve().parent.parent / "examples" / "pick_cube.py"
+    out = subprocess.run(
+        [sys.executable, str(example), "--seed", "1"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert out.returncode == 0, out.stderr
+    assert "success: True" in out.stdout and " lift " in out.stdout

@@ -225,7 +225,7 @@ class So101TaskEnv(gym.Env):
         super().reset(seed=seed)
         self.sim.reset()
         placements = (options or {}).get("placements")
-        poses = sample_placements(self.scene.objects, self.np_random)
+        poses = sample_placements(self.scene.objects, self.np_random, self.scene.keep_out)
         if placements is not None:
             poses.update({k: tuple(map(float, v)) for k, v in dict(placements).items()})
         place_objects(self.model, self.sim.data, poses)

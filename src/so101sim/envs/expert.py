@@ -6,7 +6,8 @@ An expert reads the true object poses from the environment (``env.unwrapped``), 
 whatever the observations hold, and answers in the environment's control mode
 (:meth:`ActionMap.action_for`). Each phase is planned when it starts, from where the arm and
 the cube are then; if the cube did not come up with the gripper, the expert tries again (up to
-:data:`MAX_ATTEMPTS` times).
+:data:`MAX_ATTEMPTS` times); if a phase cannot be planned (the cube was knocked out of reach),
+it holds still for the rest of the episode.
 
 >>> env = gymnasium.make("so101sim/PickCube-v0")
 >>> expert = expert_for(env)
@@ -16,6 +17,7 @@ the cube are then; if the cube did not come up with the gripper, the expert trie
 
 from __future__ import annotations
 
+import logging
 import math
 from collections import deque
 from collections.abc import Callable
@@ -23,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import SettingError
+from ..errors import SettingError, UnreachableError
 from .base import So101TaskEnv
 from .grasp import GRASP_Z_M, LIFT_Z_M
 from .planning import (
@@ -36,6 +38,8 @@ from .planning import (
     top_grasp,
 )
 from .tasks import CubeToBowlEnv, PickCubeEnv
+
+log = logging.getLogger(__name__)
 
 MAX_ATTEMPTS = 3
 APPROACH_Z_M = 0.06
@@ -90,7 +94,11 @@ class ScriptedExpert:
         while not self._queue and self._phase < len(self.phases):
             self._phase += 1
             if self._phase < len(self.phases):
-                self._plan(self.phase)
+                try:
+                    self._plan(self.phase)
+                except UnreachableError as exc:  # e.g. the cube was knocked out of reach
+                    log.debug("scripted expert gives up in %s: %s", self.phase, exc)
+                    self._phase = len(self.phases)
         commanded = self.env.sim.commanded_array()
         target = (
             self._queue.popleft()

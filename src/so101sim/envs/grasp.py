@@ -26,8 +26,17 @@ from dataclasses import dataclass, replace
 import mujoco
 import numpy as np
 
+from ..model import arm_index
 from ..robot_config import GRIPPER_TORQUE_FRACTION
-from ..scenes import ContactSettings, SceneObject, TableScene, build_scene, object_pose
+from ..scenes import (
+    ContactSettings,
+    SceneObject,
+    TableScene,
+    build_scene,
+    object_pose,
+    preset_scene,
+    sample_placements,
+)
 from ..simulation import Observer, Simulation
 from ..units import GRIPPER_INDEX
 from ..validation import check_count, check_duration, check_range
@@ -126,8 +135,6 @@ def cube_scene(
 def limit_gripper(model: mujoco.MjModel, fraction: float = GRIPPER_TORQUE_FRACTION) -> None:
     """Bound the gripper's force as the real gripper's current limit does (a share of the
     model's force range; LeRobot writes 50 %)."""
-    from ..model import arm_index
-
     a = arm_index(model).actuator[GRIPPER_INDEX]
     model.actuator_forcerange[a] = model.actuator_forcerange[a] * fraction
 
@@ -268,17 +275,13 @@ def sample_cube_placements(
 ) -> list[tuple[float, float, float, float]]:
     """``n`` placements (x, y, yaw, mass) drawn from ``seed``: positions and turns as the
     ``pick_cube`` preset draws them, masses uniform in ``masses`` (kg)."""
-    from ..scenes import preset_scene
-
     n = check_count(n, "n", minimum=1, maximum=10_000)
-    cube = preset_scene("pick_cube").object("cube")
+    scene = preset_scene("pick_cube")
     rng = np.random.default_rng(seed)
     out = []
     for _ in range(n):
-        px = rng.uniform(*cube.x_range)
-        py = rng.uniform(*cube.y_range)
-        pyaw = rng.uniform(*cube.yaw_range)
-        out.append((float(px), float(py), float(pyaw), float(rng.uniform(*masses))))
+        x, y, yaw = sample_placements(scene.objects, rng, scene.keep_out)["cube"]
+        out.append((x, y, yaw, float(rng.uniform(*masses))))
     return out
 
 

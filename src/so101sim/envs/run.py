@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import SettingError
 from ..recording import VideoRecorder, VideoSettings
-from ..validation import check_count
+from ..validation import check_count, check_range
 from .expert import expert_for
 
 TASKS = {"pick_cube": "so101sim/PickCube-v0", "cube_to_bowl": "so101sim/CubeToBowl-v0"}
@@ -53,27 +53,34 @@ def make(task: str, **kwargs: Any) -> gym.Env:
     return gym.make(env_id(task), **kwargs)
 
 
-def run_episode(env: gym.Env, seed: int, *, video: VideoRecorder | None = None) -> EpisodeResult:
-    """Run ``env``'s scripted expert for one episode from ``reset(seed=seed)``."""
+def run_episode(
+    env: gym.Env, seed: int, *, video: VideoRecorder | None = None, linger: float = 0.0
+) -> EpisodeResult:
+    """Run ``env``'s scripted expert for one episode from ``reset(seed=seed)``; it ends when
+    the environment says so, or ``linger`` simulated seconds after the task first succeeded
+    (to show the result in a video of an environment that does not end on success)."""
     expert = expert_for(env)
     inner = env.unwrapped
+    linger_steps = round(check_range(linger, "linger", low=0.0, high=60.0) * inner.control_hz)
     if video is not None:
         inner.sim.observers.append(video)
     try:
         obs, info = env.reset(seed=seed)
         expert.reset()
-        total, steps, done = 0.0, 0, False
+        total, steps, done, first = 0.0, 0, False, None
         while not done:
             obs, reward, terminated, truncated, info = env.step(expert.act(obs))
             total += float(reward)
             steps += 1
-            done = terminated or truncated
+            if info["is_success"] and first is None:
+                first = steps
+            done = terminated or truncated or (first is not None and steps - first >= linger_steps)
     finally:
         if video is not None:
             inner.sim.observers.remove(video)
     return EpisodeResult(
         seed=seed,
-        success=bool(info["is_success"]),
+        success=first is not None,
         steps=steps,
         total_reward=total,
         sim_time=inner.sim.time,
@@ -91,8 +98,8 @@ def run_expert(
     **env_kwargs: Any,
 ) -> EpisodeResult:
     """One episode of ``task``'s scripted expert; with ``record``, an MP4 of it (the
-    ``front`` camera, 30 frames per simulated second) written and verified before this
-    returns.
+    ``front`` camera, 30 frames per simulated second, going on for a second after the task
+    succeeds) written and verified before this returns.
 
     Raises:
         SettingError: an unknown task; OutputPathError, RecordingError: a bad video path or
@@ -100,12 +107,14 @@ def run_expert(
     """
     seed = check_count(seed, "seed", maximum=2**63 - 1)
     settings = video or VideoSettings(camera="front", caption=True)
+    if record is not None:
+        env_kwargs.setdefault("terminate_on_success", False)
     env = make(task, **env_kwargs)
     recorder = None
     try:
         if record is not None:
             recorder = VideoRecorder(record, env.unwrapped.model, settings, force=force)
-        result = run_episode(env, seed, video=recorder)
+        result = run_episode(env, seed, video=recorder, linger=1.0 if record else 0.0)
     finally:
         written = recorder.close() if recorder is not None else None
         env.close()

@@ -17,11 +17,11 @@ import mujoco
 
 from ..errors import ModelError, SettingError
 from ..model import arm_index, scene_path
-from ..validation import check_count
+from ..validation import check_count, check_range
 from .cameras import CameraSpec, add_camera, check_camera_names
-from .objects import MAX_OBJECTS, ContactSettings, SceneObject, Table
+from .objects import MAX_OBJECTS, MAX_REACH_M, ContactSettings, SceneObject, Table
 from .parts import add_jaw_pads, add_object, add_table, set_options
-from .placement import placed, sample_placements
+from .placement import Rectangle, placed, sample_placements
 
 
 @dataclass(frozen=True)
@@ -29,7 +29,9 @@ class TableScene:
     """A table-top scene: what the arm stands on (``table``), the ``objects`` on it, extra
     ``cameras``, and the ``contact`` settings objects use. ``name`` is for messages. With a
     ``seed``, the objects that have ranges are compiled at start poses drawn from it
-    (:func:`~so101sim.scenes.sample_placements`), else at their nominal poses."""
+    (:func:`~so101sim.scenes.sample_placements`), else at their nominal poses; drawn poses
+    stay out of the ``keep_out`` rectangles (x_min, x_max, y_min, y_max metres), e.g. where
+    the folded arm lies."""
 
     objects: tuple[SceneObject, ...] = ()
     table: Table = field(default_factory=Table)
@@ -37,6 +39,7 @@ class TableScene:
     contact: ContactSettings = field(default_factory=ContactSettings)
     name: str = "custom"
     seed: int | None = None
+    keep_out: tuple[Rectangle, ...] = ()
 
     def validated(self) -> TableScene:
         """A copy with every part checked, or a SettingError/CameraError saying what to use."""
@@ -49,9 +52,10 @@ class TableScene:
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise SettingError(f"object {dup[0]!r} is given twice; object names must differ")
+        keep_out = tuple(_rectangle(r) for r in self.keep_out)
         if self.seed is not None:
             seed = check_count(self.seed, "scene seed", maximum=2**63 - 1)
-            objects = placed(objects, sample_placements(objects, seed))
+            objects = placed(objects, sample_placements(objects, seed, keep_out))
         return TableScene(
             objects=objects,
             table=self.table.validated(),
@@ -59,6 +63,7 @@ class TableScene:
             contact=self.contact.validated(),
             name=str(self.name),
             seed=self.seed,
+            keep_out=keep_out,
         )
 
     def object(self, name: str) -> SceneObject:
@@ -70,6 +75,20 @@ class TableScene:
             f"scene {self.name!r} has no object {name!r}; its objects are "
             f"{', '.join(o.name for o in self.objects) or 'none'}"
         )
+
+
+def _rectangle(r: object) -> Rectangle:
+    if not isinstance(r, list | tuple) or len(r) != 4:
+        raise SettingError(
+            f"keep_out rectangle {r!r} is invalid; expected (x_min, x_max, y_min, y_max) metres"
+        )
+    lim = MAX_REACH_M
+    x0, x1, y0, y1 = (check_range(v, "keep_out", low=-lim, high=lim, unit=" m") for v in r)
+    if x0 > x1 or y0 > y1:
+        raise SettingError(
+            f"keep_out rectangle {r!r} is empty; expected x_min <= x_max and y_min <= y_max"
+        )
+    return (x0, x1, y0, y1)
 
 
 def scene_spec(

@@ -19,11 +19,15 @@ from .objects import SceneObject
 SEPARATION_GAP_M = 0.05
 """The free space kept between two objects' bounding circles when their poses are drawn, so
 the open jaws can come down around one without touching the other (metres)."""
+KEEP_OUT_GAP_M = 0.01
+"""The free space kept between an object's bounding circle and a keep-out rectangle."""
 MAX_DRAWS = 1000
 """Tries to find poses that keep the objects apart before giving up."""
 
 Placement = tuple[float, float, float]
 """(x, y, yaw): metres in the base frame, degrees about the vertical."""
+Rectangle = tuple[float, float, float, float]
+"""(x_min, x_max, y_min, y_max): a patch of the table, metres in the base frame."""
 
 
 def _draw(obj: SceneObject, rng: np.random.Generator) -> Placement:
@@ -40,11 +44,36 @@ def _apart(obj: SceneObject, p: Placement, placed: list[tuple[SceneObject, Place
     )
 
 
+def _clear(obj: SceneObject, p: Placement, keep_out: Sequence[Rectangle]) -> bool:
+    for x0, x1, y0, y1 in keep_out:
+        dx, dy = max(x0 - p[0], 0.0, p[0] - x1), max(y0 - p[1], 0.0, p[1] - y1)
+        if math.hypot(dx, dy) < obj.radius + KEEP_OUT_GAP_M:
+            return False
+    return True
+
+
+def _draw_all(
+    objects: Sequence[SceneObject], gen: np.random.Generator, keep_out: Sequence[Rectangle]
+) -> dict[str, Placement] | None:
+    """One try: a pose for every object, or None as soon as one lands too close."""
+    done: list[tuple[SceneObject, Placement]] = []
+    for obj in objects:
+        p = _draw(obj, gen)
+        drawn = obj.x_range is not None or obj.y_range is not None
+        if not _apart(obj, p, done) or (drawn and not _clear(obj, p, keep_out)):
+            return None
+        done.append((obj, p))
+    return {obj.name: p for obj, p in done}
+
+
 def sample_placements(
-    objects: Sequence[SceneObject], rng: np.random.Generator | int | None
+    objects: Sequence[SceneObject],
+    rng: np.random.Generator | int | None,
+    keep_out: Sequence[Rectangle] = (),
 ) -> dict[str, Placement]:
     """A start pose for each object: drawn within its ranges (``rng``: a NumPy generator or a
-    seed), at least :data:`SEPARATION_GAP_M` apart from the others, or its nominal pose.
+    seed), at least :data:`SEPARATION_GAP_M` apart from the others and clear of the
+    ``keep_out`` rectangles, or its nominal pose (objects without ranges).
 
     Raises:
         SettingError: no poses keeping the objects apart were found (ranges too small).
@@ -52,18 +81,13 @@ def sample_placements(
     gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     objects = [o.validated() for o in objects]
     for _ in range(MAX_DRAWS):
-        placed: list[tuple[SceneObject, Placement]] = []
-        for obj in objects:
-            p = _draw(obj, gen)
-            if not _apart(obj, p, placed):
-                break
-            placed.append((obj, p))
-        else:
-            return {obj.name: p for obj, p in placed}
+        poses = _draw_all(objects, gen, keep_out)
+        if poses is not None:
+            return poses
     raise SettingError(
         f"no start poses keep the objects {', '.join(o.name for o in objects)} "
-        f"{SEPARATION_GAP_M * 100:g} cm apart within their ranges after {MAX_DRAWS} tries; "
-        "expected wider x_range/y_range or fewer objects"
+        f"{SEPARATION_GAP_M * 100:g} cm apart within their ranges and out of the keep-out "
+        f"patches after {MAX_DRAWS} tries; expected wider x_range/y_range or fewer objects"
     )
 
 

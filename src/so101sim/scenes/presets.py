@@ -27,30 +27,37 @@ CUBE = SceneObject(
     size=(0.025, 0.025, 0.025),
     mass=0.03,
     rgba=(0.85, 0.15, 0.1, 1.0),
-    pos=(0.19, 0.0),
-    x_range=(0.15, 0.23),
-    y_range=(-0.10, 0.10),
+    pos=(0.19, 0.08),
+    x_range=(0.14, 0.23),
+    y_range=(-0.11, 0.11),
     yaw_range=(-45.0, 45.0),
 )
-"""A 2.5 cm, 30 g red cube, anywhere in an 8 × 20 cm patch in front of the arm."""
+"""A 2.5 cm, 30 g red cube, anywhere in a 9 × 22 cm patch in front of the arm (clear of the
+folded arm)."""
 BOWL = SceneObject(
     "bowl",
     shape="bowl",
     size=(0.09, 0.035),
     mass=0.15,
     rgba=(0.2, 0.45, 0.85, 1.0),
-    pos=(0.19, 0.10),
-    x_range=(0.15, 0.23),
+    pos=(0.19, -0.08),
+    x_range=(0.14, 0.23),
     y_range=(-0.11, 0.11),
     wall=0.004,
 )
 """A 9 cm wide, 3.5 cm tall blue bowl (its wall 16 flat segments), 150 g."""
 
+FOLDED_ARM = (-0.1, 0.21, -0.035, 0.035)
+"""Where the arm in its folded rest pose (:data:`so101sim.units.STARTING_POSE`) lies on the
+table: its gripper rests 16 mm above the table up to 19 cm in front of the base. Drawn start
+poses stay clear of it (x_min, x_max, y_min, y_max metres)."""
+
 SCENE_PRESETS: dict[str, TableScene] = {
-    "pick_cube": TableScene(objects=(CUBE,), name="pick_cube"),
+    "pick_cube": TableScene(objects=(CUBE,), name="pick_cube", keep_out=(FOLDED_ARM,)),
     "cube_to_bowl": TableScene(
-        objects=(replace(CUBE, pos=(0.19, -0.08), y_range=(-0.11, 0.11)), BOWL),
+        objects=(CUBE, BOWL),
         name="cube_to_bowl",
+        keep_out=(FOLDED_ARM,),
     ),
 }
 """Table-top scenes by name: a cube to pick up; a cube to put in a bowl."""
