@@ -28,6 +28,9 @@ from so101sim.recording import VideoSettings
 from so101sim.units import STARTING_POSE
 
 IDS = ["so101sim/PickCube-v0", "so101sim/CubeToBowl-v0"]
+# Absolute joint targets in degrees are the arm's own action space (what LeRobot sends), not
+# the [-1, 1] box the checker recommends for RL.
+pytestmark = pytest.mark.filterwarnings("ignore:.*symmetric and normalized space")
 
 
 def _rollout(env, seed, actions):
@@ -174,6 +177,10 @@ def test_bad_settings_and_actions_are_refused_with_what_to_use():
         PickCubeEnv(image_size=(10**6, 64))
     with pytest.raises(SettingError, match="unknown render mode"):
         PickCubeEnv(render_mode="ansi")
+    with pytest.raises(SettingError, match="unknown render camera 'top'"):
+        PickCubeEnv(render_camera="top")
+    with pytest.raises(SettingError, match="unknown quality preset 'best'"):
+        PickCubeEnv(quality="best")
     with pytest.raises(SettingError, match="unknown task 'stack'"):
         run_expert("stack")
     env = CubeToBowlEnv()
@@ -256,3 +263,15 @@ def test_the_pick_cube_example_runs_and_succeeds():
     )
     assert out.returncode == 0, out.stderr
     assert "success: True" in out.stdout and " lift " in out.stdout
+
+
+def test_a_diverged_simulation_raises_instead_of_resetting_silently():
+    from so101sim.errors import SimulationDivergedError
+
+    env = PickCubeEnv()
+    obs, _ = env.reset(seed=0)
+    env.sim.data.qvel[:] = np.nan  # MuJoCo would reset the data and go on
+    with pytest.raises(SimulationDivergedError, match="reset the environment"):
+        env.step(obs["agent_pos"])
+    obs, _ = env.reset(seed=0)  # a reset recovers
+    assert np.isfinite(env.step(obs["agent_pos"])[0]["agent_pos"]).all()

@@ -30,7 +30,8 @@ import numpy as np
 from gymnasium import spaces
 
 from ..errors import SettingError, SimulationDivergedError
-from ..recording import FrameRenderer, VideoSettings
+from ..recording import FREE_CAMERA, QUALITY_CHOICES, FrameRenderer, VideoSettings
+from ..recording.settings import check_quality
 from ..robot_config import GRIPPER_TORQUE_FRACTION
 from ..scenes import (
     PRESET_CAMERAS,
@@ -50,10 +51,12 @@ from .actions import ActionMap, ControlSettings
 from .grasp import limit_gripper
 
 REWARD_MODES = ("dense", "sparse")
-_DIVERGENCE = (
-    mujoco.mjtWarning.mjWARN_BADQACC,
-    mujoco.mjtWarning.mjWARN_BADQVEL,
-    mujoco.mjtWarning.mjWARN_BADQPOS,
+_DIVERGENCE = np.array(
+    [
+        int(mujoco.mjtWarning.mjWARN_BADQACC),
+        int(mujoco.mjtWarning.mjWARN_BADQVEL),
+        int(mujoco.mjtWarning.mjWARN_BADQPOS),
+    ]
 )
 RENDER_MODES = ("human", "rgb_array")
 MAX_SPEED = 1e4
@@ -112,8 +115,10 @@ class So101TaskEnv(gym.Env):
         self.cameras = tuple(cameras)
         self.image_size = _size(image_size, "image_size")
         self.render_size = _size(render_size, "render_size")
-        self.render_camera = render_camera
-        self.quality = quality
+        self.render_camera = check_choice(
+            render_camera, "render camera", [*PRESET_CAMERAS, FREE_CAMERA]
+        )
+        self.quality = check_quality(quality, QUALITY_CHOICES)
         self.object_state = bool(object_state)
         self.terminate_on_success = bool(terminate_on_success)
         hz = check_range(control_hz, "control_hz", low=1.0, high=500.0, unit=" Hz")
@@ -156,6 +161,7 @@ class So101TaskEnv(gym.Env):
             for o in self.scene.objects
         }
         self._tip_site = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, "gripperframe")
+        self._scale = self.sim.units.scale  # radians per arm unit
 
     # -- set-up
     def _camera_specs(self) -> list:
@@ -260,11 +266,12 @@ class So101TaskEnv(gym.Env):
         m, d = self.model, sim.data
         sim.command_array(targets, check=False)
         t_end = d.time + self.substeps * m.opt.timestep
-        for w in _DIVERGENCE:
-            d.warning[w].number = 0
+        counts = d.warning.number  # a view: MuJoCo counts its warnings there
+        counts[_DIVERGENCE] = 0
         mujoco.mj_step(m, d, nstep=self.substeps)
-        warned = [mujoco.mjtWarning(w).name for w in _DIVERGENCE if d.warning[w].number]
-        if warned or abs(d.time - t_end) > m.opt.timestep / 2 or not np.isfinite(d.qpos).all():
+        bad = abs(d.time - t_end) > m.opt.timestep / 2 or not np.isfinite(d.qpos).all()
+        if bad or counts[_DIVERGENCE].any():
+            warned = [mujoco.mjtWarning(w).name for w in _DIVERGENCE if counts[w]]
             raise SimulationDivergedError(
                 f"the simulation diverged before t = {t_end:.3f} s "
                 f"({', '.join(warned) or 'the state is not finite'}); expected stable physics: "
@@ -319,14 +326,13 @@ class So101TaskEnv(gym.Env):
         d = self.sim.data
         if d.ncon == 0:
             return False, False
-        body = self._bodies[name]
-        pairs = d.contact.geom[: d.ncon]
-        bodies = self.model.geom_bodyid[pairs]
-        hits = []
-        for pad in self._pads:
-            with_pad = (pairs == pad).any(axis=1) & (bodies == body).any(axis=1)
-            hits.append(bool(with_pad.any()))
-        return hits[0], hits[1]
+        bodies = self.model.geom_bodyid[d.contact.geom[: d.ncon]]  # (ncon, 2)
+        geoms = d.contact.geom[: d.ncon]
+        on_object = (bodies == self._bodies[name]).any(axis=1)
+        fixed, moving = self._pads
+        return bool((on_object & (geoms == fixed).any(axis=1)).any()), bool(
+            (on_object & (geoms == moving).any(axis=1)).any()
+        )
 
     def grasped(self, name: str) -> bool:
         """Both jaws' pads touch object ``name``."""
@@ -345,7 +351,7 @@ class So101TaskEnv(gym.Env):
         sim = self.sim
         space = self.observation_space["agent_pos"]
         pos = np.clip(sim.pose_array(), space.low, space.high).astype(np.float32)
-        vel = np.clip(sim.data.qvel[sim.index.dof] / sim.units.scale, -MAX_SPEED, MAX_SPEED)
+        vel = np.clip(sim.data.qvel[sim.index.dof] / self._scale, -MAX_SPEED, MAX_SPEED)
         vel = vel.astype(np.float32)
         obs: dict[str, Any] = {"agent_pos": pos, "agent_vel": vel}
         if self.object_state:

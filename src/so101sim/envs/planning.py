@@ -26,13 +26,11 @@ GRASP_PITCH = -90.0
 JAW_CLEARANCE_M = 0.0015
 """How far the fixed jaw's face stays from the object's face as it comes down (metres)."""
 OPEN_GRIPPER = 35.0
-"""The gripper opening (0-100) the jaws approach with: about 38 mm between the fingertips,
-enough for a 2.5 cm cube with room to spare, not so much that the moving jaw sweeps far."""
+"""The gripper opening (0-100) the jaws approach with: at least 35 mm between the fingers,
+room to spare around a 2.5 cm cube, not so much that the moving jaw sweeps far."""
 CLOSED_GRIPPER = 0.0
 """The grip command: fully closed; the jaws stop on the object and squeeze it with the
 gripper's force limit."""
-FACE_SYMMETRY_DEG = {"box": 90.0, "cylinder": None, "sphere": None}
-"""Turning a box by 90° gives the same grasp; round objects can be taken at any roll."""
 
 
 @dataclass(frozen=True)

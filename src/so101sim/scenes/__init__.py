@@ -42,6 +42,7 @@ from .placement import (
 from .presets import (
     BOWL,
     CUBE,
+    FOLDED_ARM,
     SCENE_PRESETS,
     VisualJitter,
     VisualRandomizer,
@@ -54,6 +55,7 @@ __all__ = [
     "CAMERA_BODIES",
     "CONTAINERS",
     "CUBE",
+    "FOLDED_ARM",
     "MAX_CAMERA_PIXELS",
     "PRESET_CAMERAS",
     "SCENE_PRESETS",

@@ -123,6 +123,7 @@ def camera(name: str, **overrides: object) -> CameraSpec:
 
 
 def add_camera(spec: mujoco.MjSpec, cam: CameraSpec) -> None:
+    """Add ``cam`` to ``spec`` on its body (the world, or the gripper)."""
     if cam.body == "world":
         parent = spec.worldbody
     else:

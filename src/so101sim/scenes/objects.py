@@ -164,6 +164,7 @@ class Table:
     friction: float = 0.8
 
     def validated(self) -> Table:
+        """A copy with every field checked, or a SettingError saying what to use."""
         surface = check_choice(self.surface, "table surface", SURFACES)
         size = _vector(self.size, "table size", (2,))
         for v in size:
@@ -210,6 +211,7 @@ class ContactSettings:
     noslip_iterations: int = 0
 
     def validated(self) -> ContactSettings:
+        """A copy with every field checked, or a SettingError saying what to use."""
         condim = check_count(self.condim, "contact condim", minimum=1, maximum=6)
         if condim not in (1, 3, 4, 6):
             raise SettingError(f"contact condim = {condim} is invalid; expected 1, 3, 4 or 6")
