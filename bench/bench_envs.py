@@ -1,7 +1,7 @@
 """The Gymnasium tasks: environment steps per second side by side with raw ``mj_step``, the
 scripted experts' success rates over 100 seeds, and the grasp figures over 50 placements.
 
-    PYTHONPATH=src python bench/bench_envs.py [--repeats 3] [--seeds 100] [--placements 50]
+    PYTHONPATH=src python bench/bench_envs.py [--repeats 9] [--seeds 100] [--placements 50]
 
 Speed, measured in one run, interleaved, best of ``--repeats`` (all on the ``pick_cube`` scene,
 25 Hz control: 20 physics steps of 2 ms per environment step, replaying the actions the
@@ -201,7 +201,7 @@ def ablation(placements: int) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--repeats", type=int, default=9)
     parser.add_argument("--seeds", type=int, default=100)
     parser.add_argument("--placements", type=int, default=50)
     parser.add_argument("--ablation-placements", type=int, default=10)
