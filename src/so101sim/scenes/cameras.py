@@ -1,12 +1,12 @@
-"""Scenes built at load time: the shipped SO-101 model plus cameras (and, later, tables and
-objects), added with ``mujoco.MjSpec`` so the vendored files are never edited.
+"""Simulated cameras added to a scene at load time with ``mujoco.MjSpec``.
 
 A :class:`CameraSpec` says where a simulated camera sits (metres, in the world or on the
 gripper), where it looks and its field of view; :data:`PRESET_CAMERAS` has ``front`` (in front
 of the arm, looking back at it and the space it works in, like the usual LeRobot table set-up)
 and ``wrist`` (on the gripper, looking along the jaws at what they grasp, like the common SO-101
-wrist-camera mount). :func:`build_model` compiles the scene; the ``draft`` render preset finds
-the same scene with simplified meshes (:func:`scene_builder`).
+wrist-camera mount). :func:`so101sim.scenes.build_model` compiles a scene with them; the
+``draft`` render preset finds the same scene with simplified meshes
+(:func:`so101sim.scenes.scene_builder`).
 
 Frames come from :class:`so101sim.recording.FrameRenderer` with ``camera=<name>``; the
 robot's cameras (:class:`so101sim.robot.SO101SimFollower`) are built on it.
@@ -15,18 +15,13 @@ robot's cameras (:class:`so101sim.robot.SO101SimFollower`) are built on it.
 from __future__ import annotations
 
 import math
-import threading
-import weakref
-from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from .errors import CameraError, ModelError
-from .model import arm_index, scene_path
-from .validation import check_count, check_range
+from ..errors import CameraError, ModelError
+from ..validation import check_count, check_range
 
 MAX_CAMERA_PIXELS = 4096
 """The largest camera width or height accepted, in pixels."""
@@ -127,7 +122,8 @@ def camera(name: str, **overrides: object) -> CameraSpec:
     return CameraSpec(name=name, **overrides).validated()  # type: ignore[arg-type]
 
 
-def _add_camera(spec: mujoco.MjSpec, cam: CameraSpec) -> None:
+def add_camera(spec: mujoco.MjSpec, cam: CameraSpec) -> None:
+    """Add ``cam`` to ``spec`` on its body (the world, or the gripper)."""
     if cam.body == "world":
         parent = spec.worldbody
     else:
@@ -142,15 +138,8 @@ def _add_camera(spec: mujoco.MjSpec, cam: CameraSpec) -> None:
     c.fovy = cam.fovy
 
 
-def scene_spec(
-    cameras: Sequence[CameraSpec] = (), model: str | Path | None = None
-) -> mujoco.MjSpec:
-    """The MjSpec of ``model`` (the shipped ``scene.xml`` by default) with ``cameras`` added."""
-    path = Path(model) if model is not None else scene_path()
-    try:
-        spec = mujoco.MjSpec.from_file(str(path))
-    except (ValueError, mujoco.FatalError) as exc:
-        raise ModelError(f"model file {str(path)!r} cannot be read: {exc}") from exc
+def check_camera_names(spec: mujoco.MjSpec, cameras: tuple[CameraSpec, ...]) -> None:
+    """Raise CameraError if two cameras share a name or one takes a name the model has."""
     names = [c.name for c in cameras]
     dup = {n for n in names if names.count(n) > 1}
     if dup:
@@ -158,45 +147,6 @@ def scene_spec(
     for cam in cameras:
         if spec.camera(cam.name) is not None:
             raise CameraError(f"the model already has a camera {cam.name!r}; choose another name")
-        _add_camera(spec, cam.validated())
-    return spec
-
-
-_builders: weakref.WeakKeyDictionary[mujoco.MjModel, Callable[[], mujoco.MjSpec]] = (
-    weakref.WeakKeyDictionary()
-)
-_lock = threading.Lock()
-
-
-def build_model(
-    cameras: Sequence[CameraSpec] = (), model: str | Path | None = None
-) -> mujoco.MjModel:
-    """Compile the shipped scene (or ``model``) with ``cameras`` added. The draft render preset
-    finds the same scene with simplified meshes (:func:`draft_of`).
-
-    Raises:
-        ModelError, CameraError: the model cannot be read or compiled; a camera is not valid.
-    """
-    cams = tuple(c.validated() for c in cameras)
-
-    def make() -> mujoco.MjSpec:
-        return scene_spec(cams, model)
-
-    spec = make()
-    try:
-        compiled = spec.compile()
-    except (ValueError, mujoco.FatalError) as exc:
-        raise ModelError(f"the scene does not compile: {exc}") from exc
-    arm_index(compiled)  # fail now if the SO-101 joints are missing
-    with _lock:
-        _builders[compiled] = make
-    return compiled
-
-
-def scene_builder(model: mujoco.MjModel) -> Callable[[], mujoco.MjSpec] | None:
-    """The function that makes ``model``'s MjSpec again, if :func:`build_model` compiled it."""
-    with _lock:
-        return _builders.get(model)
 
 
 def camera_names(model: mujoco.MjModel) -> list[str]:

@@ -1,0 +1,65 @@
+"""Gymnasium environments for the SO-101: table-top tasks that LeRobot's ``lerobot-eval`` and
+RL libraries can run, and a scripted expert per task.
+
+Importing this package registers the environments with Gymnasium:
+
+* ``so101sim/PickCube-v0`` (:class:`PickCubeEnv`): pick up a 2.5 cm cube;
+* ``so101sim/CubeToBowl-v0`` (:class:`CubeToBowlEnv`): put the cube in a bowl.
+
+>>> import gymnasium as gym, so101sim.envs
+>>> env = gym.make("so101sim/PickCube-v0", cameras=["front"], render_mode="rgb_array")
+>>> obs, info = env.reset(seed=0)
+
+Actions are joint targets in the arm's units (absolute, or deltas), or end-effector deltas
+(:mod:`.actions`); observations a dict whose keys map onto LeRobot's (:mod:`.base`); tasks,
+success and rewards in :mod:`.tasks`; the experts in :mod:`.expert`, run by
+:func:`run_expert` and :func:`evaluate_expert`. See docs/tasks.md.
+"""
+
+import gymnasium as gym
+
+from .actions import CONTROL_MODES, ActionMap, ControlSettings
+from .base import REWARD_MODES, Evaluation, So101TaskEnv
+from .expert import CubeToBowlExpert, PickCubeExpert, ScriptedExpert, expert_for
+from .run import TASKS, EpisodeResult, ExpertScore, env_id, evaluate_expert, make, run_expert
+from .tasks import LIFT_SUCCESS_M, CubeToBowlEnv, PickCubeEnv
+
+ENTRY_POINTS = {
+    "so101sim/PickCube-v0": "so101sim.envs.tasks:PickCubeEnv",
+    "so101sim/CubeToBowl-v0": "so101sim.envs.tasks:CubeToBowlEnv",
+}
+
+
+def register_envs() -> None:
+    """Register the environments with Gymnasium (done on import; harmless to repeat)."""
+    for env_name, entry in ENTRY_POINTS.items():
+        if env_name not in gym.registry:
+            gym.register(id=env_name, entry_point=entry)
+
+
+register_envs()
+
+__all__ = [
+    "CONTROL_MODES",
+    "ENTRY_POINTS",
+    "LIFT_SUCCESS_M",
+    "REWARD_MODES",
+    "TASKS",
+    "ActionMap",
+    "ControlSettings",
+    "CubeToBowlEnv",
+    "CubeToBowlExpert",
+    "EpisodeResult",
+    "Evaluation",
+    "ExpertScore",
+    "PickCubeEnv",
+    "PickCubeExpert",
+    "ScriptedExpert",
+    "So101TaskEnv",
+    "env_id",
+    "evaluate_expert",
+    "expert_for",
+    "make",
+    "register_envs",
+    "run_expert",
+]

@@ -1,0 +1,398 @@
+"""The Gymnasium environment the SO-101 tasks share: a table-top scene, the arm driven by
+joint targets in its own units, dict observations shaped for LeRobot, seeded resets.
+
+Observations (a ``gymnasium.spaces.Dict``; LeRobot's ``preprocess_observation`` maps the
+keys as noted):
+
+* ``agent_pos`` (6,) float32: the measured joint positions, degrees and gripper 0-100
+  (``observation.state``);
+* ``agent_vel`` (6,) float32: their velocities, per second;
+* ``environment_state`` (7 per object) float32, if ``object_state``: each object's position
+  (metres) and orientation quaternion (w, x, y, z) (``observation.environment_state``);
+* ``pixels``: ``{camera: (height, width, 3) uint8}``, if ``cameras`` are named
+  (``observation.images.<camera>``).
+
+Every ``1 / control_hz`` s the action sets the six position targets (see
+:mod:`so101sim.envs.actions`) and the physics takes that many 2 ms steps. An episode ends
+when the task succeeds (``terminated``, unless ``terminate_on_success`` is off) or after
+``episode_seconds`` (``truncated``); ``info["is_success"]`` says whether it succeeded.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from ..errors import SettingError, SimulationDivergedError
+from ..recording import FREE_CAMERA, QUALITY_CHOICES, FrameRenderer, VideoSettings
+from ..recording.settings import check_quality
+from ..robot_config import GRIPPER_TORQUE_FRACTION
+from ..scenes import (
+    PRESET_CAMERAS,
+    VisualJitter,
+    VisualRandomizer,
+    build_scene,
+    camera,
+    object_qpos,
+    place_objects,
+    preset_scene,
+    sample_placements,
+)
+from ..simulation import Simulation
+from ..units import JOINT_NAMES, LIMIT_TOLERANCE, STARTING_POSE, Pose
+from ..validation import check_choice, check_count, check_range
+from .actions import ActionMap, ControlSettings
+from .grasp import limit_gripper
+
+REWARD_MODES = ("dense", "sparse")
+_DIVERGENCE = np.array(
+    [
+        int(mujoco.mjtWarning.mjWARN_BADQACC),
+        int(mujoco.mjtWarning.mjWARN_BADQVEL),
+        int(mujoco.mjtWarning.mjWARN_BADQPOS),
+    ]
+)
+RENDER_MODES = ("human", "rgb_array")
+MAX_SPEED = 1e4
+"""Joint speeds in ``agent_vel`` are clipped to this (arm units per second)."""
+MAX_DISTANCE_M = 10.0
+"""Object positions in ``environment_state`` are clipped to this (metres)."""
+GRIP_OFFSET_M = 0.014
+"""From the tip (on the fixed jaw's face) to the middle of a 2.5 cm grasp, along the tool's z
+axis: the point the dense rewards bring to the object."""
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """How a task stands after a step: ``success``, the ``dense`` reward (0..1) and the
+    figures it came from (they go into ``info``)."""
+
+    success: bool
+    dense: float
+    details: dict[str, float] = field(default_factory=dict)
+
+
+class So101TaskEnv(gym.Env):
+    """A table-top task for the SO-101 (see the module's text). Subclasses name the scene
+    preset and say how the task is judged (:meth:`evaluate`)."""
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": list(RENDER_MODES), "render_fps": 25}
+    scene_name = "pick_cube"
+    default_episode_seconds = 8.0
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        *,
+        control: str = "joint",
+        reward: str = "dense",
+        cameras: tuple[str, ...] | list[str] = (),
+        image_size: tuple[int, int] = (224, 224),
+        object_state: bool = True,
+        control_hz: float = 25.0,
+        episode_seconds: float | None = None,
+        max_delta: float = 10.0,
+        ee_step: float = 0.02,
+        ee_turn: float = 10.0,
+        render_camera: str = "front",
+        render_size: tuple[int, int] = (480, 640),
+        quality: str = "draft",
+        visual_jitter: VisualJitter | None = None,
+        gripper_torque_fraction: float = GRIPPER_TORQUE_FRACTION,
+        terminate_on_success: bool = True,
+        initial_pose: Pose | None = None,
+    ) -> None:
+        if render_mode is not None:
+            check_choice(render_mode, "render mode", RENDER_MODES)
+        self.render_mode = render_mode
+        self.reward_mode = check_choice(reward, "reward mode", REWARD_MODES)
+        self.cameras = tuple(cameras)
+        self.image_size = _size(image_size, "image_size")
+        self.render_size = _size(render_size, "render_size")
+        self.render_camera = check_choice(
+            render_camera, "render camera", [*PRESET_CAMERAS, FREE_CAMERA]
+        )
+        self.quality = check_quality(quality, QUALITY_CHOICES)
+        self.object_state = bool(object_state)
+        self.terminate_on_success = bool(terminate_on_success)
+        hz = check_range(control_hz, "control_hz", low=1.0, high=500.0, unit=" Hz")
+        seconds = check_range(
+            self.default_episode_seconds if episode_seconds is None else episode_seconds,
+            "episode_seconds",
+            low=0.0,
+            high=3600.0,
+            low_open=True,
+            unit=" s",
+        )
+        fraction = check_range(
+            gripper_torque_fraction, "gripper_torque_fraction", low=0.0, high=1.0, low_open=True
+        )
+        self.scene = preset_scene(self.scene_name, cameras=self._camera_specs())
+        self.model = build_scene(self.scene)
+        limit_gripper(self.model, fraction)
+        self.sim = Simulation(self.model, initial_pose=initial_pose or STARTING_POSE)
+        self.substeps = _substeps(hz, self.sim.timestep)
+        self.control_hz = hz
+        self.max_episode_steps = max(1, round(seconds * hz))
+        self._max_episode_steps = self.max_episode_steps  # where LeRobot's eval looks for it
+        self.metadata = {**self.metadata, "render_fps": hz}
+        self.actions = ActionMap(
+            self.model, self.sim.units, ControlSettings(control, max_delta, ee_step, ee_turn)
+        )
+        self.action_space = self.actions.space
+        self.observation_space = self._observation_space()
+        self.jitter = (visual_jitter or VisualJitter()).validated()
+        self._renderers: dict[str, FrameRenderer] = {}
+        self._randomizer: VisualRandomizer | None = None
+        self._viewer_stack: contextlib.ExitStack | None = None
+        self._viewer: Any = None
+        self._steps = 0
+        self._start: dict[str, np.ndarray] = {}
+        self._pads = [_geom(self.model, n) for n in ("fixed_jaw_pad", "moving_jaw_pad")]
+        self._qpos = {o.name: object_qpos(self.model, o.name) for o in self.scene.objects}
+        self._bodies = {
+            o.name: mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, o.name)
+            for o in self.scene.objects
+        }
+        self._tip_site = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, "gripperframe")
+        self._scale = self.sim.units.scale  # radians per arm unit
+
+    # -- set-up
+    def _camera_specs(self) -> list:
+        h, w = self.image_size
+        names = list(dict.fromkeys(self.cameras))
+        if len(names) != len(self.cameras):
+            raise SettingError(f"cameras {list(self.cameras)} name one twice; expected each once")
+        for name in names:
+            check_choice(name, "camera", PRESET_CAMERAS)
+        specs = [camera(n, width=w, height=h) for n in names]
+        if self.render_camera in PRESET_CAMERAS and self.render_camera not in names:
+            specs.append(camera(self.render_camera))
+        return specs
+
+    def _observation_space(self) -> spaces.Dict:
+        lower, upper = self.sim.units.limits
+        tol = LIMIT_TOLERANCE
+        n = len(JOINT_NAMES)
+        items: dict[str, spaces.Space] = {
+            "agent_pos": spaces.Box(
+                (lower - tol).astype(np.float32),
+                (upper + tol).astype(np.float32),
+                dtype=np.float32,
+            ),
+            "agent_vel": spaces.Box(-MAX_SPEED, MAX_SPEED, (n,), dtype=np.float32),
+        }
+        if self.object_state:
+            k = len(self.scene.objects)
+            bound = np.tile(np.r_[np.full(3, MAX_DISTANCE_M), np.ones(4)], k).astype(np.float32)
+            items["environment_state"] = spaces.Box(-bound, bound, dtype=np.float32)
+        if self.cameras:
+            h, w = self.image_size
+            items["pixels"] = spaces.Dict(
+                {c: spaces.Box(0, 255, (h, w, 3), dtype=np.uint8) for c in self.cameras}
+            )
+        return spaces.Dict(items)
+
+    def _renderer(self, name: str, size: tuple[int, int]) -> FrameRenderer:
+        key = f"{name}@{size[0]}x{size[1]}"
+        r = self._renderers.get(key)
+        if r is None:
+            settings = VideoSettings(
+                width=size[1], height=size[0], camera=name, caption=False, quality=self.quality
+            )
+            r = self._renderers[key] = FrameRenderer(self.model, settings)
+            self._randomizer = None  # a new render model: jitter it too from now on
+        return r
+
+    def _jitter(self) -> None:
+        if not self.jitter.active:
+            return
+        for name in self.cameras:
+            self._renderer(name, self.image_size)
+        if self.render_mode == "rgb_array":
+            self._renderer(self.render_camera, self.render_size)
+        if self._randomizer is None:
+            models = [self.model, *(r.render_model for r in self._renderers.values())]
+            self._randomizer = VisualRandomizer(models, self.scene, self.jitter)
+        self._randomizer.apply(self.np_random)
+
+    # -- the Gymnasium API
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Back to the start pose with the objects at poses drawn from the episode's random
+        generator (``options={"placements": {name: (x, y, yaw)}}`` sets them instead)."""
+        super().reset(seed=seed)
+        self.sim.reset()
+        placements = (options or {}).get("placements")
+        poses = sample_placements(self.scene.objects, self.np_random, self.scene.keep_out)
+        if placements is not None:
+            poses.update({k: tuple(map(float, v)) for k, v in dict(placements).items()})
+        place_objects(self.model, self.sim.data, poses)
+        self.actions.reset(self.sim.commanded_array())
+        self._jitter()
+        self._steps = 0
+        self._start = {o.name: self.object_pose(o.name) for o in self.scene.objects}
+        ev = self.evaluate()
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(), self._info(ev)
+
+    def step(self, action: np.ndarray) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        targets = self.actions.targets(action, self.sim.commanded_array())
+        self._advance(targets)
+        self._steps += 1
+        ev = self.evaluate()
+        reward = ev.dense if self.reward_mode == "dense" else float(ev.success)
+        terminated = bool(ev.success and self.terminate_on_success)
+        truncated = self._steps >= self.max_episode_steps and not terminated
+        return self._observation(), float(reward), terminated, truncated, self._info(ev)
+
+    def _advance(self, targets: np.ndarray) -> None:
+        """Hold ``targets`` for one control period. With observers (a video) or a viewer, the
+        simulation's own stepping serves them; without, MuJoCo takes the steps in one call
+        (the same physics, without the per-step bookkeeping)."""
+        sim = self.sim
+        if sim.observers or self._viewer is not None:
+            rows = np.broadcast_to(targets, (self.substeps, len(targets)))
+            sim.advance(rows, viewer=self._viewer, phase=self.spec_name, keep_trace=False)
+            return
+        m, d = self.model, sim.data
+        sim.command_array(targets, check=False)
+        t_end = d.time + self.substeps * m.opt.timestep
+        counts = d.warning.number  # a view: MuJoCo counts its warnings there
+        counts[_DIVERGENCE] = 0
+        mujoco.mj_step(m, d, nstep=self.substeps)
+        bad = abs(d.time - t_end) > m.opt.timestep / 2 or not np.isfinite(d.qpos).all()
+        if bad or counts[_DIVERGENCE].any():
+            warned = [mujoco.mjtWarning(w).name for w in _DIVERGENCE if counts[w]]
+            raise SimulationDivergedError(
+                f"the simulation diverged before t = {t_end:.3f} s "
+                f"({', '.join(warned) or 'the state is not finite'}); expected stable physics: "
+                "reset the environment, and check the actions and the scene's masses"
+            )
+
+    @property
+    def spec_name(self) -> str:
+        """The environment's Gymnasium id, or its class name."""
+        return self.spec.id if self.spec is not None else type(self).__name__
+
+    def render(self) -> np.ndarray | None:
+        """``rgb_array``: the frame of ``render_camera`` (``render_size``); ``human``: shows
+        the simulation in MuJoCo's viewer (a display is needed)."""
+        if self.render_mode == "rgb_array":
+            return self._renderer(self.render_camera, self.render_size).render(self.sim.data).copy()
+        if self.render_mode == "human":
+            if self._viewer is None:
+                from ..viewer import open_viewer  # imported here only to keep start-up fast
+
+                stack = contextlib.ExitStack()
+                self._viewer = stack.enter_context(open_viewer(self.model, self.sim.data))
+                self._viewer_stack = stack
+            self._viewer.sync()
+        return None
+
+    def close(self) -> None:
+        for r in self._renderers.values():
+            r.close()
+        self._renderers.clear()
+        if self._viewer_stack is not None:
+            self._viewer_stack.close()
+            self._viewer_stack, self._viewer = None, None
+
+    # -- state the tasks and experts read
+    def object_pose(self, name: str) -> np.ndarray:
+        """Object ``name``'s pose now: (x, y, z, qw, qx, qy, qz)."""
+        return self.sim.data.qpos[self._qpos[name]].copy()
+
+    def start_pose(self, name: str) -> np.ndarray:
+        """Object ``name``'s pose at the start of the episode."""
+        return self._start[name]
+
+    def grip_centre(self) -> np.ndarray:
+        """The point between the jaws a 2.5 cm object is held at (metres, world frame)."""
+        d = self.sim.data
+        rot = d.site_xmat[self._tip_site].reshape(3, 3)
+        return d.site_xpos[self._tip_site] + GRIP_OFFSET_M * rot[:, 2]
+
+    def touching(self, name: str) -> tuple[bool, bool]:
+        """Whether the fixed and the moving jaw's pads touch object ``name``."""
+        d = self.sim.data
+        if d.ncon == 0:
+            return False, False
+        bodies = self.model.geom_bodyid[d.contact.geom[: d.ncon]]  # (ncon, 2)
+        geoms = d.contact.geom[: d.ncon]
+        on_object = (bodies == self._bodies[name]).any(axis=1)
+        fixed, moving = self._pads
+        return bool((on_object & (geoms == fixed).any(axis=1)).any()), bool(
+            (on_object & (geoms == moving).any(axis=1)).any()
+        )
+
+    def grasped(self, name: str) -> bool:
+        """Both jaws' pads touch object ``name``."""
+        return all(self.touching(name))
+
+    def evaluate(self) -> Evaluation:
+        """How the task stands (subclasses)."""
+        raise NotImplementedError
+
+    @property
+    def elapsed_steps(self) -> int:
+        return self._steps
+
+    # -- observations
+    def _observation(self) -> dict[str, Any]:
+        sim = self.sim
+        space = self.observation_space["agent_pos"]
+        pos = np.clip(sim.pose_array(), space.low, space.high).astype(np.float32)
+        vel = np.clip(sim.data.qvel[sim.index.dof] / self._scale, -MAX_SPEED, MAX_SPEED)
+        vel = vel.astype(np.float32)
+        obs: dict[str, Any] = {"agent_pos": pos, "agent_vel": vel}
+        if self.object_state:
+            poses = [self.object_pose(o.name) for o in self.scene.objects]
+            state = np.concatenate(poses).astype(np.float32)
+            space = self.observation_space["environment_state"]
+            obs["environment_state"] = np.clip(state, space.low, space.high)
+        if self.cameras:
+            obs["pixels"] = {
+                c: self._renderer(c, self.image_size).render(sim.data).copy() for c in self.cameras
+            }
+        return obs
+
+    def _info(self, ev: Evaluation) -> dict[str, Any]:
+        return {"is_success": bool(ev.success), "time": self.sim.time, **ev.details}
+
+
+def _size(value: object, what: str) -> tuple[int, int]:
+    try:
+        h, w = value  # type: ignore[misc]
+    except (TypeError, ValueError):
+        raise SettingError(f"{what} = {value!r}; expected (height, width) in pixels") from None
+    dims = tuple(
+        check_count(v, what, minimum=16, maximum=4096, even=True, unit=" pixels") for v in (h, w)
+    )
+    return dims  # type: ignore[return-value]
+
+
+def _substeps(hz: float, dt: float) -> int:
+    n = round(1.0 / (hz * dt))
+    if n < 1 or abs(n * dt * hz - 1.0) > 1e-6:
+        good = ", ".join(f"{1 / (k * dt):g}" for k in (5, 10, 20, 25, 50) if k * dt > 0)
+        raise SettingError(
+            f"control_hz = {hz:g} Hz is not a whole number of {dt * 1000:g} ms physics steps; "
+            f"expected a rate such as {good} Hz"
+        )
+    return n
+
+
+def _geom(model: mujoco.MjModel, name: str) -> int:
+    gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
+    if gid < 0:
+        raise SettingError(f"the scene has no geom {name!r}; expected a scene with objects")
+    return int(gid)

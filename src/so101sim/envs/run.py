@@ -1,0 +1,157 @@
+"""Running the scripted experts: one episode (:func:`run_expert`, optionally recorded to a
+video, which is what ``so101sim demo <task> --record <file>`` shows), or many seeds for a
+success rate (:func:`evaluate_expert`).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from ..errors import SettingError
+from ..recording import VideoRecorder, VideoSettings
+from ..validation import check_count, check_range
+from .expert import expert_for
+
+TASKS = {"pick_cube": "so101sim/PickCube-v0", "cube_to_bowl": "so101sim/CubeToBowl-v0"}
+"""Task names (as the scene presets name them) and their Gymnasium ids."""
+
+
+@dataclass(frozen=True)
+class EpisodeResult:
+    """One episode: its seed, whether it succeeded, the steps it took, the sum of its rewards,
+    the simulated time, how many grasps the expert tried, and the video written (if any)."""
+
+    seed: int
+    success: bool
+    steps: int
+    total_reward: float
+    sim_time: float
+    attempts: int
+    video: Path | None = None
+
+
+def env_id(task: str) -> str:
+    """The Gymnasium id of ``task`` (a task name such as ``"pick_cube"``, or an id)."""
+    if task in TASKS.values():
+        return task
+    if task in TASKS:
+        return TASKS[task]
+    raise SettingError(
+        f"unknown task {task!r}; valid tasks are {', '.join(TASKS)} "
+        f"(or the ids {', '.join(TASKS.values())})"
+    )
+
+
+def make(task: str, **kwargs: Any) -> gym.Env:
+    """``gymnasium.make`` of ``task`` (a name or an id), with ``kwargs`` for the env."""
+    return gym.make(env_id(task), **kwargs)
+
+
+def run_episode(
+    env: gym.Env, seed: int, *, video: VideoRecorder | None = None, linger: float = 0.0
+) -> EpisodeResult:
+    """Run ``env``'s scripted expert for one episode from ``reset(seed=seed)``; it ends when
+    the environment says so, or ``linger`` simulated seconds after the task first succeeded
+    (to show the result in a video of an environment that does not end on success)."""
+    expert = expert_for(env)
+    inner = env.unwrapped
+    linger_steps = round(check_range(linger, "linger", low=0.0, high=60.0) * inner.control_hz)
+    if video is not None:
+        inner.sim.observers.append(video)
+    try:
+        obs, info = env.reset(seed=seed)
+        expert.reset()
+        total, steps, done, first = 0.0, 0, False, None
+        while not done:
+            obs, reward, terminated, truncated, info = env.step(expert.act(obs))
+            total += float(reward)
+            steps += 1
+            if info["is_success"] and first is None:
+                first = steps
+            done = terminated or truncated or (first is not None and steps - first >= linger_steps)
+    finally:
+        if video is not None:
+            inner.sim.observers.remove(video)
+    return EpisodeResult(
+        seed=seed,
+        success=first is not None,
+        steps=steps,
+        total_reward=total,
+        sim_time=inner.sim.time,
+        attempts=expert.attempts + 1,
+    )
+
+
+def run_expert(
+    task: str,
+    seed: int = 0,
+    *,
+    record: str | os.PathLike[str] | None = None,
+    video: VideoSettings | None = None,
+    force: bool = False,
+    **env_kwargs: Any,
+) -> EpisodeResult:
+    """One episode of ``task``'s scripted expert; with ``record``, an MP4 of it (the
+    ``front`` camera, 30 frames per simulated second, going on for a second after the task
+    succeeds) written and verified before this returns.
+
+    Raises:
+        SettingError: an unknown task; OutputPathError, RecordingError: a bad video path or
+            settings.
+    """
+    seed = check_count(seed, "seed", maximum=2**63 - 1)
+    settings = video or VideoSettings(camera="front", caption=True)
+    if record is not None:
+        env_kwargs.setdefault("terminate_on_success", False)
+    env = make(task, **env_kwargs)
+    recorder = None
+    try:
+        if record is not None:
+            recorder = VideoRecorder(record, env.unwrapped.model, settings, force=force)
+        result = run_episode(env, seed, video=recorder, linger=1.0 if record else 0.0)
+    finally:
+        written = recorder.close() if recorder is not None else None
+        env.close()
+    if record is not None and written is None:
+        raise SettingError(f"the video {str(record)!r} was not written (no frame was drawn)")
+    return EpisodeResult(**{**result.__dict__, "video": written})
+
+
+@dataclass(frozen=True)
+class ExpertScore:
+    """A scripted expert's record over many seeds."""
+
+    task: str
+    episodes: tuple[EpisodeResult, ...]
+
+    @property
+    def success_rate(self) -> float:
+        return float(np.mean([e.success for e in self.episodes])) if self.episodes else 0.0
+
+    @property
+    def failed_seeds(self) -> list[int]:
+        return [e.seed for e in self.episodes if not e.success]
+
+    @property
+    def mean_steps(self) -> float:
+        return float(np.mean([e.steps for e in self.episodes])) if self.episodes else 0.0
+
+
+def evaluate_expert(
+    task: str, seeds: range | list[int] = range(100), **env_kwargs: Any
+) -> ExpertScore:
+    """Run ``task``'s scripted expert once per seed (one environment, reset each time)."""
+    seeds = list(seeds)
+    check_count(len(seeds), "number of seeds", minimum=1, maximum=100_000)
+    env = make(task, **env_kwargs)
+    try:
+        episodes = tuple(run_episode(env, int(s)) for s in seeds)
+    finally:
+        env.close()
+    return ExpertScore(task=env_id(task), episodes=episodes)

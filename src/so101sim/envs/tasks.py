@@ -1,0 +1,85 @@
+"""The tasks: pick up the cube (``so101sim/PickCube-v0``), put the cube in the bowl
+(``so101sim/CubeToBowl-v0``). What counts as success, and the dense rewards (0..1, and 1 on
+success):
+
+* **PickCube**: success when both jaws hold the cube and its centre is at least
+  :data:`LIFT_SUCCESS_M` above where it started. Dense reward: (reach + grasp + 2 lift) / 4,
+  reach = 1 - tanh(10 d) for the distance d (metres) from the point between the jaws to the
+  cube, grasp = 1 while both jaws touch it, lift = the share of :data:`LIFT_SUCCESS_M` risen
+  while grasped.
+* **CubeToBowl**: success when the cube is inside the bowl (its centre within the bowl's
+  inner radius less half the cube, below the rim), the jaws have let go of it and it has
+  settled (slower than :data:`SETTLED_SPEED`). Dense reward: (reach + grasp + carry + inside)
+  / 5, carry = 1 - tanh(5 h) for the horizontal distance h from the cube to the bowl's centre
+  while the cube is held up or in the bowl, inside = 1 once it is in the bowl.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..scenes import object_qvel
+from .base import Evaluation, So101TaskEnv
+
+LIFT_SUCCESS_M = 0.03
+"""How high the cube's centre must rise for PickCube to succeed (metres)."""
+REACH_SCALE = 10.0
+"""1/m in the reach reward's tanh."""
+CARRY_SCALE = 5.0
+"""1/m in the carry reward's tanh."""
+SETTLED_SPEED = 0.05
+"""The cube counts as in the bowl once it moves slower than this (m/s)."""
+
+
+class PickCubeEnv(So101TaskEnv):
+    """Pick up the 2.5 cm cube and hold it at least 3 cm above the table."""
+
+    scene_name = "pick_cube"
+    default_episode_seconds = 8.0
+
+    def evaluate(self) -> Evaluation:
+        cube = self.object_pose("cube")
+        rise = float(cube[2] - self.start_pose("cube")[2])
+        grasped = self.grasped("cube")
+        distance = float(np.linalg.norm(self.grip_centre() - cube[:3]))
+        reach = 1.0 - math.tanh(REACH_SCALE * distance)
+        lift = float(np.clip(rise / LIFT_SUCCESS_M, 0.0, 1.0)) if grasped else 0.0
+        success = grasped and rise >= LIFT_SUCCESS_M
+        dense = 1.0 if success else (reach + float(grasped) + 2.0 * lift) / 4.0
+        details = {"cube_rise_m": rise, "grasped": float(grasped), "reach_distance_m": distance}
+        return Evaluation(success=success, dense=dense, details=details)
+
+
+class CubeToBowlEnv(So101TaskEnv):
+    """Pick up the cube and put it in the bowl."""
+
+    scene_name = "cube_to_bowl"
+    default_episode_seconds = 12.0
+
+    @property
+    def _cube_dofs(self) -> slice:
+        return object_qvel(self.model, "cube")
+
+    def evaluate(self) -> Evaluation:
+        cube = self.object_pose("cube")
+        bowl = self.object_pose("bowl")
+        spec_cube = self.scene.object("cube")
+        spec_bowl = self.scene.object("bowl")
+        half = spec_cube.size[0] / 2
+        inner = spec_bowl.size[0] / 2 - spec_bowl.wall
+        bottom = bowl[2] - spec_bowl.height / 2
+        offset = float(np.linalg.norm(cube[:2] - bowl[:2]))
+        inside = offset <= inner - half and cube[2] - bottom <= spec_bowl.height
+        touching = self.touching("cube")
+        grasped = all(touching)
+        speed = float(np.linalg.norm(self.sim.data.qvel[self._cube_dofs][:3]))
+        success = bool(inside and not any(touching) and speed < SETTLED_SPEED)
+        distance = float(np.linalg.norm(self.grip_centre() - cube[:3]))
+        reach = 1.0 - math.tanh(REACH_SCALE * distance)
+        lifted = cube[2] - self.start_pose("cube")[2] > 0.01
+        carry = 1.0 - math.tanh(CARRY_SCALE * offset) if (grasped and lifted) or inside else 0.0
+        dense = 1.0 if success else (reach + float(grasped) + carry + float(inside)) / 5.0
+        details = {"cube_to_bowl_m": offset, "grasped": float(grasped), "in_bowl": float(inside)}
+        return Evaluation(success=success, dense=dense, details=details)

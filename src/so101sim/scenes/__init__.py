@@ -1,0 +1,90 @@
+"""Scenes built at load time: the shipped SO-101 model plus cameras, a table and objects,
+added with ``mujoco.MjSpec`` so the vendored files are never edited.
+
+* cameras (:mod:`.cameras`): :class:`CameraSpec`, :data:`PRESET_CAMERAS` (``front``,
+  ``wrist``), :func:`camera`;
+* what a table-top scene holds (:mod:`.objects`): :class:`SceneObject`, :class:`Table`,
+  :class:`ContactSettings`;
+* compiling it (:mod:`.build`): :class:`TableScene`, :func:`build_model`,
+  :func:`scene_spec`, :func:`scene_builder` (the ``draft`` render preset rebuilds a scene with
+  simplified meshes through it);
+* the objects' poses (:mod:`.placement`): :func:`object_pose`, :func:`place_object`, start
+  poses drawn from a seed (:func:`sample_placements`);
+* named scenes (:mod:`.presets`): :data:`SCENE_PRESETS` (``pick_cube``, ``cube_to_bowl``),
+  :func:`preset_scene`, a motion file's ``[scene]`` (:func:`scene_from_dict`), colour, light
+  and camera jitter (:class:`VisualJitter`).
+
+Frames come from :class:`so101sim.recording.FrameRenderer` with ``camera=<name>``.
+"""
+
+from .build import TableScene, build_model, build_scene, scene_builder, scene_of, scene_spec
+from .cameras import (
+    CAMERA_BODIES,
+    MAX_CAMERA_PIXELS,
+    PRESET_CAMERAS,
+    CameraSpec,
+    camera,
+    camera_names,
+    fovy_to_focal,
+)
+from .objects import CONTAINERS, SHAPES, SURFACES, ContactSettings, SceneObject, Table
+from .placement import (
+    SEPARATION_GAP_M,
+    Placement,
+    object_pose,
+    object_qpos,
+    object_qvel,
+    place_object,
+    place_objects,
+    placed,
+    sample_placements,
+)
+from .presets import (
+    BOWL,
+    CUBE,
+    FOLDED_ARM,
+    SCENE_PRESETS,
+    VisualJitter,
+    VisualRandomizer,
+    preset_scene,
+    scene_from_dict,
+)
+
+__all__ = [
+    "BOWL",
+    "CAMERA_BODIES",
+    "CONTAINERS",
+    "CUBE",
+    "FOLDED_ARM",
+    "MAX_CAMERA_PIXELS",
+    "PRESET_CAMERAS",
+    "SCENE_PRESETS",
+    "SEPARATION_GAP_M",
+    "SHAPES",
+    "SURFACES",
+    "CameraSpec",
+    "ContactSettings",
+    "Placement",
+    "SceneObject",
+    "Table",
+    "TableScene",
+    "VisualJitter",
+    "VisualRandomizer",
+    "build_model",
+    "build_scene",
+    "camera",
+    "camera_names",
+    "fovy_to_focal",
+    "object_pose",
+    "object_qpos",
+    "object_qvel",
+    "place_object",
+    "place_objects",
+    "placed",
+    "preset_scene",
+    "sample_placements",
+    "scene_builder",
+    "scene_from_dict",
+    "scene_of",
+    "scene_spec",
+]
