@@ -490,7 +490,7 @@ def test_cli_options_never_crash(tmp_path, capsys, data):
     assert not list(out.rglob(".*.partial*")), argv  # nothing half-written left behind
 
 
-# ---------------------------------------------------------------------------- found by fuzzing, fixed
+# ----------------------------------------------------------------- found by fuzzing, fixed
 def test_huge_frame_sizes_are_refused_as_settings(tmp_path, capsys):
     video = tmp_path / "v.mp4"
     argv = ["hold", "--headless", "--duration", "0.01", "--record", str(video)]
