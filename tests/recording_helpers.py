@@ -14,6 +14,7 @@ import random
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -137,11 +138,13 @@ def interrupt_recordings(
     delay: tuple[float, float] = (0.0, 3.0),
     gap: tuple[float, float] = (0.0, 1.0),
     plot: bool = True,
+    hang_s: float = 300.0,
 ) -> list[Outcome]:
     """Record ``so101sim hold`` (video, log and, with ``plot``, a plot) once per plan in one
     child process and send the plan's signals: the first a random ``delay`` after the run
     began stepping, each next one a random ``gap`` later (so they land while it runs, while
-    its files are finished, or after). Returns what each recording left."""
+    its files are finished, or after). Returns what each recording left; raises if a command
+    has not ended ``hang_s`` seconds after its signals."""
     rng = random.Random(seed)
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), "PYTHONUNBUFFERED": "1"}
     child = subprocess.Popen(
@@ -180,8 +183,13 @@ def interrupt_recordings(
                 if k:
                     time.sleep(rng.uniform(*gap))
                 child.send_signal(sig)
+            watchdog = threading.Timer(hang_s, child.kill)  # a hung command ends the test
+            watchdog.start()
             while not (line := child.stdout.readline()).startswith("EXIT") and line:
                 printed += line
+            watchdog.cancel()
+            if not line:
+                raise AssertionError(f"run {i} {plan} hung for {hang_s} s:\n{printed}")
             outcome = Outcome(tuple(s.name for s in plan), int(line.split()[1]), [])
             if outcome.code != 128 + plan[0]:
                 outcome.problems.append(f"exit status {outcome.code}")

@@ -210,7 +210,7 @@ def test_a_close_interrupted_by_ctrl_c_goes_on_when_called_again(tmp_path, monke
     def interrupted_once(self):
         calls.append(1)
         if len(calls) == 1:
-            self._queue.put(None)  # the end of input is queued, then Ctrl-C lands
+            self._frames.put(None)  # the end of input is queued, then Ctrl-C lands
             self._end_queued = True
             raise KeyboardInterrupt
         return finish(self)

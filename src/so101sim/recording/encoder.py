@@ -9,7 +9,9 @@ lands while a frame is piped to ffmpeg kills ffmpeg, leaving an MP4 without its 
 - ffmpeg runs in its own session, so a Ctrl-C or a hang-up sent to the terminal's process
   group does not reach it: it stops when its input ends, after writing the index;
 - a thread pipes the frames, and Python raises KeyboardInterrupt only in the main thread, so a
-  frame is never cut in half;
+  frame is never cut in half; the threads share only C-level queues (``queue.SimpleQueue``),
+  which an interrupt cannot leave locked (a ``queue.Queue`` can: its lock is released by Python
+  code, where a KeyboardInterrupt may land);
 - :meth:`FfmpegEncoder.finish` may be interrupted and called again (it resumes); it returns
   ffmpeg's exit status, and ffmpeg's messages are kept for the error.
 """
@@ -21,6 +23,7 @@ import queue
 import subprocess
 import tempfile
 import threading
+import time
 from fractions import Fraction
 from pathlib import Path
 from typing import IO, Any
@@ -31,6 +34,7 @@ from ..errors import OutputPathError
 
 _QUEUE_FRAMES = 4  # frames waiting for the pipe at most,
 _QUEUE_BYTES = 32 * 2**20  # and at most this many bytes of them (but one frame)
+_POLL_S = 0.002  # how often a full queue is looked at again
 _MESSAGES_KEPT = 4000  # characters of ffmpeg's messages kept for an error
 _VERIFY_TIMEOUT_S = 600.0
 
@@ -78,31 +82,38 @@ class FfmpegEncoder:
         )
         self.sent = 0  # frames fully written to ffmpeg's input
         self.error: OSError | None = None  # the pipe broke (ffmpeg stopped early)
+        # Only C-level queues between the threads: a KeyboardInterrupt can land at any Python
+        # line of the main thread, and a queue.Queue or Thread.join interrupted half-way can
+        # be left locked for good. :meth:`send` waits while ``_waiting`` frames are queued.
         frame_bytes = int(width) * int(height) * 3
-        waiting = max(1, min(_QUEUE_FRAMES, _QUEUE_BYTES // frame_bytes))
-        self._queue: queue.Queue[bytes | None] = queue.Queue(maxsize=waiting)
+        self._waiting = max(1, min(_QUEUE_FRAMES, _QUEUE_BYTES // frame_bytes))
+        self._frames: queue.SimpleQueue[bytes | None] = queue.SimpleQueue()
+        self._done: queue.SimpleQueue[bool] = queue.SimpleQueue()
+        self._fed_all = False  # set by the thread before it says so on _done
         self._end_queued = False
         self._thread = threading.Thread(target=self._pipe, name="so101sim-ffmpeg", daemon=True)
         self._thread.start()
 
     def _pipe(self) -> None:
         stdin: Any = self.proc.stdin
-        while (item := self._queue.get()) is not None:
-            if self.error is not None:
-                continue  # keep draining so that send() never blocks
-            try:
-                stdin.write(item)
-            except (OSError, ValueError) as exc:
-                self.error = exc if isinstance(exc, OSError) else OSError(str(exc))
-            else:
-                self.sent += 1
+        while (item := self._frames.get()) is not None:
+            if self.error is None:
+                try:
+                    stdin.write(item)
+                except (OSError, ValueError) as exc:
+                    self.error = exc if isinstance(exc, OSError) else OSError(str(exc))
+                else:
+                    self.sent += 1
         try:
             stdin.close()  # end of input: ffmpeg writes the index and exits
         except OSError as exc:
             self.error = self.error or exc
+        self._fed_all = True
+        self._done.put(True)
 
     def send(self, frame: np.ndarray) -> None:
-        """Queue one (height, width, 3) uint8 frame (copied) for ffmpeg.
+        """Queue one (height, width, 3) uint8 frame (copied) for ffmpeg; wait while the
+        frames already queued fill the bound.
 
         Raises:
             OutputPathError: ffmpeg stopped taking frames (a full disk, a crash).
@@ -113,15 +124,28 @@ class FfmpegEncoder:
             raise OutputPathError(self.failure())
         if frame.shape != self.size or frame.dtype != np.uint8:
             raise ValueError(f"frame of shape {frame.shape}, {frame.dtype}; expected {self.size}")
-        self._queue.put(frame.tobytes())
+        data = frame.tobytes()
+        while self._frames.qsize() >= self._waiting and self.error is None:
+            time.sleep(_POLL_S)  # ffmpeg is behind: bounded memory
+        self._frames.put(data)
+
+    def _wait_fed(self, timeout: float | None = None) -> bool:
+        """Wait until the thread has written (or dropped) every frame and closed the pipe."""
+        end = None if timeout is None else time.monotonic() + timeout
+        while not self._fed_all:
+            if end is not None and time.monotonic() > end:
+                return False
+            with contextlib.suppress(queue.Empty):
+                self._done.get(timeout=0.2)
+        return True
 
     def finish(self) -> int:
         """End the input, wait for ffmpeg and return its exit status (0: the file is complete).
         May be interrupted and called again."""
         if not self._end_queued:
-            self._queue.put(None)
+            self._frames.put(None)
             self._end_queued = True
-        self._thread.join()
+        self._wait_fed()
         return self.proc.wait()
 
     def kill(self) -> None:
@@ -129,13 +153,10 @@ class FfmpegEncoder:
         with contextlib.suppress(OSError):
             self.proc.kill()
         self.error = self.error or OSError("stopped")
-        while not self._end_queued:
-            with contextlib.suppress(queue.Full):
-                self._queue.put_nowait(None)
-                self._end_queued = True
-            with contextlib.suppress(queue.Empty):
-                self._queue.get_nowait()
-        self._thread.join(timeout=5.0)
+        if not self._end_queued:
+            self._frames.put(None)
+            self._end_queued = True
+        self._wait_fed(timeout=5.0)
         self.proc.wait()
 
     def messages(self) -> str:
