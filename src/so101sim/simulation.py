@@ -288,7 +288,11 @@ class Simulation:
         """Step ``len(targets)`` times, commanding row i of ``targets`` (arm units, shape
         ``(n, 6)``) during step i; every observer sees the run. The returned :class:`Trace`
         holds per-step arrays only with ``keep_trace``."""
-        q = self.units.to_radians(np.asarray(targets, dtype=float).reshape(-1, len(JOINT_NAMES)))
+        arr = np.asarray(targets, dtype=float).reshape(-1, len(JOINT_NAMES))
+        if len(arr) > 1 and arr.strides[0] == 0:  # one target held (a broadcast view): convert
+            q = np.broadcast_to(self.units.to_radians(arr[:1]), arr.shape)  # one row, not n
+        else:
+            q = self.units.to_radians(arr)
         with self.lock:
             if len(q):
                 self._state.commanded = True
