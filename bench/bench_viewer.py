@@ -11,10 +11,11 @@ side by side in one run (nothing is asserted); needs a display.
   drawing rate), and how long ``sync()`` kept the caller: a mirrored viewer only copies the
   state; the viewer on the live data (``mirror=False``, the robot's viewer before) waits while
   MuJoCo draws.
-- physics lag: wall-clock time minus simulated time since the start, sampled 100 times a second
-  (sim time read first, so the figure is an upper bound), for the real-time robot with no
-  viewer, the draft and the full mirrored viewer, and the previous design (the physics thread
-  syncing the viewer on the live data, holding the lock), as a reference.
+- physics lag: how late the robot's physics thread starts each 4 ms block after its
+  wall-clock deadline (measured in the thread: its ``Pacer`` is swapped for one that records
+  it), with no viewer, the draft and the full mirrored viewer with its threads at niceness
+  ``VIEWER_NICE`` and at 0, and the previous design (the physics thread syncing the viewer on
+  the live data while holding the lock) as a reference.
 """
 
 from __future__ import annotations
@@ -30,12 +31,15 @@ from collections.abc import Iterator
 
 import numpy as np
 
+import so101sim.robot_threads
+import so101sim.viewer
 from so101sim import gl
 from so101sim.robot import SO101SimFollower, SO101SimFollowerConfig
 from so101sim.simulation import Pacer, Simulation
 from so101sim.viewer import open_viewer
 
 OFFER_HZ = 240.0
+NICE = so101sim.viewer.VIEWER_NICE
 
 
 @contextlib.contextmanager
@@ -75,39 +79,65 @@ def frames(quality: str, mirror: bool, seconds: float) -> str:
     )
 
 
-def sample_lag(now_sim, seconds: float) -> np.ndarray:
-    """Wall time minus simulated time since the first sample, 100 times a second (ms)."""
-    s0, w0 = now_sim(), time.perf_counter()
-    lags = []
-    while (time.perf_counter() - w0) < seconds:
-        s = now_sim()
-        lags.append((time.perf_counter() - w0) - (s - s0))
-        time.sleep(0.01)
-    return np.array(lags) * 1e3
+class LatenessPacer(Pacer):
+    """A Pacer that records, at each wait, how late it returns after the deadline (s)."""
+
+    def __init__(self, *args, **kw) -> None:
+        super().__init__(*args, **kw)
+        self.late: list[tuple[float, float]] = []  # (wall time, seconds late)
+
+    def wait(self, sim_time: float) -> float:
+        slept = super().wait(sim_time)
+        if self._anchor is not None:
+            wall0, sim0 = self._anchor
+            now = self.clock()
+            self.late.append((now, now - (wall0 + (sim_time - sim0) / self.speed)))
+        return slept
 
 
-def lag_line(what: str, lags: np.ndarray, extra: str = "") -> str:
+@contextlib.contextmanager
+def recording_pacers() -> Iterator[list[LatenessPacer]]:
+    """Swap the robot's Pacer for a LatenessPacer (bench only); yield the ones made."""
+    made: list[LatenessPacer] = []
+
+    def make(*args, **kw) -> LatenessPacer:
+        made.append(LatenessPacer(*args, **kw))
+        return made[-1]
+
+    saved = so101sim.robot_threads.Pacer
+    so101sim.robot_threads.Pacer = make
+    try:
+        yield made
+    finally:
+        so101sim.robot_threads.Pacer = saved
+
+
+def lag_line(what: str, late: list[tuple[float, float]], skip_s: float, extra: str = "") -> str:
+    start = late[0][0] + skip_s  # the first second (the window opening) left out
+    lags = np.array([lag for t, lag in late if t >= start]) * 1e3
+    over = (lags > 10).sum()
     return (
-        f"  {what:22s}: behind the wall clock max {lags.max():7.1f} ms, "
-        f"p99 {np.percentile(lags, 99):7.1f} ms, at the end {lags[-1]:7.1f} ms{extra}"
+        f"  {what:22s}: block started late max {lags.max():7.1f} ms, p99 "
+        f"{np.percentile(lags, 99):6.1f} ms, median {np.median(lags):5.2f} ms, "
+        f"{over} of {len(lags)} blocks > 10 ms late{extra}"
     )
 
 
-def robot_lag(quality: str | None, seconds: float) -> str:
+def robot_lag(quality: str | None, seconds: float, nice: int = NICE) -> str:
     viewer = quality is not None
+    so101sim.viewer.VIEWER_NICE = nice  # read when the viewer opens; put back by main()
     cfg = SO101SimFollowerConfig(viewer=viewer, viewer_quality=quality or "auto")
-    robot = SO101SimFollower(cfg)
-    with robot:
-        time.sleep(0.5)  # let the window open and settle
-        t0 = robot.time
-        robot.send_action({"shoulder_pan.pos": 10.0})
-        lags = sample_lag(lambda: robot.time, seconds)
-        while robot.time - t0 < 0.3:
-            time.sleep(0.001)
-        pan = robot.get_observation()["shoulder_pan.pos"]  # later than +0.3 s: close enough
-        drawn = robot.viewer.frames / (seconds + 0.5) if viewer else math.nan
+    with recording_pacers() as pacers:
+        robot = SO101SimFollower(cfg)
+        with robot:
+            wall0 = time.perf_counter()
+            time.sleep(1.0)  # let the window open and settle
+            robot.send_action({"shoulder_pan.pos": 10.0})  # the arm moves meanwhile
+            time.sleep(max(0.0, seconds + 1.0 - (time.perf_counter() - wall0)))
+            drawn = robot.viewer.frames / (time.perf_counter() - wall0) if viewer else math.nan
     extra = f"; viewer drew {drawn:5.1f} frames/s" if viewer else ""
-    return lag_line(f"robot, viewer {quality or 'none'}", lags, extra + f"; pan {pan:.1f} deg")
+    what = f"robot, viewer {quality}, nice {nice}" if viewer else "robot, no viewer"
+    return lag_line(what, pacers[0].late, 1.0, extra)
 
 
 def previous_design_lag(seconds: float) -> str:
@@ -115,10 +145,11 @@ def previous_design_lag(seconds: float) -> str:
     at 60 Hz while holding the lock (waiting for MuJoCo to draw the full meshes)."""
     sim = Simulation()
     stop = threading.Event()
+    pacer = LatenessPacer(sleep=stop.wait)
     with open_viewer(sim.model, sim.data) as v:
 
         def physics() -> None:
-            pacer, t, last = Pacer(sleep=stop.wait), sim.time, -math.inf
+            t, last = sim.time, -math.inf
             pacer.wait(t)
             while not stop.is_set():
                 pacer.wait(t + 0.004)
@@ -131,31 +162,30 @@ def previous_design_lag(seconds: float) -> str:
 
         thread = threading.Thread(target=physics)
         thread.start()
-        time.sleep(0.5)
-
-        def now_sim() -> float:
-            with sim.lock:
-                return sim.time
-
-        lags = sample_lag(now_sim, seconds)
+        time.sleep(seconds + 1.0)
         stop.set()
         thread.join()
-    return lag_line("previous design (full)", lags)
+    return lag_line("previous design (full)", pacer.late, 1.0)
 
 
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--seconds", type=float, default=4.0)
     p.add_argument("--busy", type=int, default=0, help="CPU-burning processes beside the bench")
+    p.add_argument("--repeat", type=int, default=1, help="rounds of the viewer lag lines")
     a = p.parse_args()
     print(f"OpenGL renderer: {gl.renderer_string()!r} (software: {gl.software_rendering()})")
     with busy(a.busy):
         print(f"viewer frames/s (states offered {OFFER_HZ:.0f} times a second, busy={a.busy}):")
         for quality, mirror in (("draft", True), ("full", True), ("full", False)):
             print(frames(quality, mirror, a.seconds), flush=True)
-        print(f"real-time physics lag over {a.seconds:g} s (sampled at 100 Hz):")
-        for quality in (None, "draft", "full"):
-            print(robot_lag(quality, a.seconds), flush=True)
+        print(f"real-time physics lag over {a.seconds:g} s after the first second:")
+        print(robot_lag(None, a.seconds), flush=True)
+        for _ in range(a.repeat):  # alternated, so that other load hits each alike
+            for quality in ("draft", "full"):
+                for nice in (NICE, 0):
+                    print(robot_lag(quality, a.seconds, nice), flush=True)
+        so101sim.viewer.VIEWER_NICE = NICE
         print(previous_design_lag(a.seconds), flush=True)
 
 

@@ -250,15 +250,22 @@ def test_recording_while_the_viewer_is_open(xvfb, tmp_path):
 def test_mirrored_viewer_draws_the_draft_meshes_on_a_cpu_renderer(xvfb):
     out = _run(
         """
-        import time
+        import os, threading, time
         from so101sim import Simulation, ZERO_POSE, gl
-        from so101sim.viewer import MirroredViewer, open_viewer
+        from so101sim.viewer import VIEWER_NICE, MirroredViewer, open_viewer
+
+        def render_thread_nice():
+            (t,) = [t for t in threading.enumerate() if "_launch_internal" in t.name]
+            return os.getpriority(os.PRIO_PROCESS, t.native_id)
 
         sim = Simulation()
         print("software", gl.software_rendering())
+        with open_viewer(sim.model, sim.data) as v:  # the live viewer keeps its priority
+            assert render_thread_nice() == os.getpriority(os.PRIO_PROCESS, 0)
         for quality in ("auto", "full"):
             with open_viewer(sim.model, sim.data, mirror=True, quality=quality) as v:
                 assert isinstance(v, MirroredViewer) and v.is_running()
+                assert render_thread_nice() >= VIEWER_NICE  # the drawing yields the CPU
                 sim.move_to(ZERO_POSE, 0.2)
                 v.sync()
                 deadline = time.monotonic() + 60

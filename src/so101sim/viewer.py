@@ -9,7 +9,9 @@ MuJoCo's ``sync()`` waits while the viewer draws a frame (about 25 ms with the f
 Mesa's software OpenGL, llvmpipe, 1 to 3 ms with the draft meshes). ``open_viewer(...,
 mirror=True)`` returns a :class:`MirroredViewer` instead: it draws a copy of the data, with the
 draft meshes the recorder ships when OpenGL renders on the CPU (a VM, WSL, a remote desktop),
-and its ``sync()`` only copies the state, so the physics never waits for the drawing.
+its ``sync()`` only copies the state, so the physics never waits for the drawing, and (on
+Linux) the viewer's threads run at a lower priority (:data:`VIEWER_NICE`): MuJoCo's viewer
+draws frames back-to-back, which on a CPU renderer keeps a core or more busy.
 """
 
 from __future__ import annotations
@@ -191,6 +193,27 @@ class MirroredViewer:
 
 _MIRRORED = ("qpos", "qvel", "mocap_pos", "mocap_quat")
 
+VIEWER_NICE = 10
+"""The niceness a mirrored viewer's threads get (Linux): MuJoCo's viewer draws frames
+back-to-back, which on a CPU renderer takes a core or more; at this niceness the physics gets
+the CPU first (about 9 to 1 against the drawing when both want it)."""
+
+
+def _native_threads() -> set[int]:
+    """The process's thread ids (Linux; empty elsewhere)."""
+    try:
+        return {int(t) for t in os.listdir("/proc/self/task")}
+    except OSError:
+        return set()
+
+
+def lower_priority(thread_ids: set[int], nice: int = VIEWER_NICE) -> None:
+    """Give the threads ``thread_ids`` (native ids) the niceness ``nice`` at least (Linux: per
+    thread); best effort, errors are ignored."""
+    for tid in thread_ids:
+        with contextlib.suppress(OSError):
+            os.setpriority(os.PRIO_PROCESS, tid, max(nice, os.getpriority(os.PRIO_PROCESS, tid)))
+
 
 def copy_state(source: mujoco.MjData, dest: mujoco.MjData) -> None:
     """Copy what drawing needs (time, joint positions and velocities, mocap poses) from
@@ -266,7 +289,8 @@ def open_viewer(
     caller waits, and what is done in the window (sliders, perturbations) reaches ``d``, as the
     pose finder needs. ``mirror=True``: a :class:`MirroredViewer` drawing a copy, at
     ``quality`` (:data:`VIEWER_QUALITIES`; ``"auto"``: the draft meshes on a CPU renderer), whose
-    ``sync()`` never waits for drawing; changes made in its window do not reach ``d``.
+    ``sync()`` never waits for drawing, and whose threads run at niceness :data:`VIEWER_NICE`
+    (Linux); changes made in its window do not reach ``d``.
 
     Raises:
         ViewerError: no display, or macOS without mjpython (the message says what to do).
@@ -279,9 +303,11 @@ def open_viewer(
         shown_m = mirror_model(m, quality)
         shown_d = mujoco.MjData(shown_m)
         copy_state(d, shown_d)  # the window opens on the present pose
-    before = set(threading.enumerate())
+    before, tasks = set(threading.enumerate()), _native_threads()
     handle = _launch_passive(shown_m, shown_d, show_ui=show_ui, key_callback=key_callback)
     ui_threads = [t for t in threading.enumerate() if t not in before]
+    if mirror:  # drawing runs in the background: it yields the CPU to the physics
+        lower_priority(_native_threads() - tasks, VIEWER_NICE)
     shown: Any = handle
     try:
         with handle.lock():
