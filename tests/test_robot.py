@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
@@ -452,6 +453,57 @@ def test_viewer_is_synced_and_closed_with_the_robot(xvfb):
     assert abs(float(out.stdout.split()[-1]) - 10.0) <= 1.0
 
 
+class StuckViewer:
+    """Stands for MuJoCo's passive viewer on a machine where drawing a frame takes 30 s."""
+
+    def __init__(self) -> None:
+        self.drawing = threading.Event()
+        self.release = threading.Event()
+        self.frames_drawn = 0
+
+    def lock(self):
+        return contextlib.nullcontext()
+
+    def sync(self, state_only: bool = False) -> None:
+        self.drawing.set()
+        self.release.wait(30)
+        self.frames_drawn += 1
+
+    def is_running(self) -> bool:
+        return not self.release.is_set()
+
+    def close(self) -> None:
+        self.release.set()
+
+
+def test_the_physics_never_waits_for_the_viewers_drawing(monkeypatch):
+    import so101sim.viewer
+
+    stuck = StuckViewer()
+
+    @contextlib.contextmanager
+    def open_stuck_viewer(m, d, *, mirror=False, **kw):
+        import mujoco
+
+        shown = so101sim.viewer.MirroredViewer(stuck, m, mujoco.MjData(m), d) if mirror else stuck
+        yield shown
+        shown.close()
+
+    monkeypatch.setattr(so101sim.viewer, "open_viewer", open_stuck_viewer)
+    robot = SO101SimFollower(SO101SimFollowerConfig(viewer=True))
+    with robot:
+        assert stuck.drawing.wait(60)  # the viewer is drawing its first frame, forever
+        t0 = robot.time
+        robot.send_action({"shoulder_pan.pos": 10.0})
+        deadline = time.monotonic() + 60  # however busy the machine: wait on simulated time
+        while robot.time - t0 < 0.3 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert robot.time - t0 >= 0.3  # the physics went on
+        assert stuck.frames_drawn == 0  # while the first frame was still being drawn
+        assert robot.get_observation()["shoulder_pan.pos"] == pytest.approx(10.0, abs=1.0)
+    assert physics_threads() == []
+
+
 def test_gripper_reading_is_clamped_to_0_100_as_lerobot_does(caplog):
     robot = lockstep()
     sim = robot.simulation
@@ -463,3 +515,111 @@ def test_gripper_reading_is_clamped_to_0_100_as_lerobot_does(caplog):
             sent = robot.send_action({"gripper.pos": -1e-6})  # noise-level: clipped silently
         assert sent == {"gripper.pos": 0.0}
     assert caplog.text == ""
+
+
+# ---------------------------------------------------------------------------- huge numbers
+def test_huge_numbers_give_clear_bounded_errors_and_change_nothing():
+    with pytest.raises(RobotConfigError, match=r"lockstep_action_seconds .*<= 86400 s"):
+        SO101SimFollowerConfig(mode="lockstep", lockstep_action_seconds=1e9)
+    with pytest.raises(RobotConfigError, match=r"lockstep_observation_seconds .*<= 86400 s"):
+        SO101SimFollowerConfig(mode="lockstep", lockstep_observation_seconds=10**400)
+    robot = lockstep()
+    with robot:
+        t0, goal = robot.time, robot.goal()
+        for seconds in (1e9, 10**400):
+            with pytest.raises(DurationError, match="at most 86400 s"):
+                robot.step(seconds)
+        for value in (10**400, -(10**400)):
+            with pytest.raises(JointValueError, match=r"shoulder_pan\.pos.*too large"):
+                robot.send_action({"shoulder_pan.pos": value})
+        assert robot.time == t0 and robot.goal() == goal
+
+
+# ---------------------------------------------------------------------------- threads end
+LEFT_CONNECTED = textwrap.dedent(
+    """
+    import atexit, sys, threading, time
+    from so101sim.robot import SO101SimFollower, SO101SimFollowerConfig
+
+    def threads_at_exit():  # registered first, so it runs after the robot's own exit hook
+        alive = [t.name for t in threading.enumerate() if t.name.startswith("so101sim")]
+        print("alive at exit:", alive, flush=True)
+
+    atexit.register(threads_at_exit)
+
+    def teleoperate():
+        # speed 1000: the physics thread is almost always inside MuJoCo when the script ends
+        robot = SO101SimFollower(SO101SimFollowerConfig(speed=1000.0))
+        robot.connect()
+        robot.send_action({"shoulder_pan.pos": 10.0})
+        time.sleep(0.02)
+        if sys.argv[1] == "raise":  # LeRobot's teleoperate() when teleop.disconnect() raises
+            raise RuntimeError("teleop.disconnect() failed")
+        return robot
+
+    robot = teleoperate()  # the script ends with the robot connected
+    """
+)
+
+
+@pytest.mark.slow
+def test_a_realtime_robot_left_connected_at_exit_stops_its_threads_and_exits_cleanly():
+    # Before the fix about 8 runs in 10 of this script segfaulted at interpreter exit.
+    for i in range(10):
+        how = "raise" if i % 2 else "return"
+        out = subprocess.run(
+            [sys.executable, "-c", LEFT_CONNECTED, how],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        expected = 1 if how == "raise" else 0  # an uncaught exception exits with 1
+        assert out.returncode == expected, (i, out.returncode, out.stderr[-2000:])
+        assert "alive at exit: []" in out.stdout, (i, out.stdout)
+        if how == "raise":
+            assert out.stderr.rstrip().endswith("RuntimeError: teleop.disconnect() failed")
+
+
+@pytest.mark.viewer
+def test_a_robot_with_its_viewer_left_connected_exits_cleanly(xvfb):
+    code = LEFT_CONNECTED.replace("speed=1000.0", "speed=1000.0, viewer=True")
+    env = {**os.environ, "DISPLAY": xvfb}
+    env.pop("MUJOCO_GL", None)
+    for how in ("return", "raise"):
+        out = subprocess.run(
+            [sys.executable, "-c", code, how], env=env, capture_output=True, text=True, timeout=120
+        )
+        assert out.returncode == (1 if how == "raise" else 0), out.stderr[-2000:]
+        assert "alive at exit: []" in out.stdout, out.stdout
+
+
+def test_dropped_connected_robots_stop_their_physics_threads_when_collected():
+    import gc
+    import weakref
+
+    robots = [SO101SimFollower(SO101SimFollowerConfig(id=f"drop{i}")) for i in range(20)]
+    for r in robots:
+        r.connect()
+    assert len(physics_threads()) == 20
+    sims = [weakref.ref(r.simulation) for r in robots]
+    del robots, r
+    gc.collect()
+    assert physics_threads() == []
+    # nothing else kept them: not the threads, not the exit hooks (removed with the robots)
+    assert [s for s in sims if s() is not None] == []
+
+
+def test_a_disconnected_robot_leaves_nothing_behind():
+    import gc
+    import weakref
+
+    before = set(threading.enumerate())
+    for make in (SO101SimFollower, lockstep):
+        robot = make()
+        robot.connect()
+        robot.disconnect()
+        sim = weakref.ref(robot.simulation)
+        del robot
+        gc.collect()
+        assert sim() is None  # no exit hook holds its simulation
+    assert set(threading.enumerate()) == before

@@ -2,11 +2,14 @@ import os
 import subprocess
 import sys
 import textwrap
+import threading
 
+import mujoco
+import numpy as np
 import pytest
 
 from so101sim import viewer
-from so101sim.errors import ViewerError
+from so101sim.errors import SettingError, ViewerError
 
 
 def test_has_display_follows_the_environment(monkeypatch):
@@ -46,6 +49,77 @@ def test_macos_without_mjpython_says_exactly_what_to_do(monkeypatch, sim):
             pass
     monkeypatch.setattr(sys, "executable", "/usr/local/bin/mjpython")
     assert not viewer.on_macos_without_mjpython()
+
+
+def test_viewer_quality_is_checked_before_anything_opens(monkeypatch, sim):
+    monkeypatch.setenv("DISPLAY", ":0")  # never reached: the settings fail first
+    with pytest.raises(SettingError, match="valid viewer qualitys are auto, draft, full"):  # noqa: SIM117
+        with viewer.open_viewer(sim.model, sim.data, mirror=True, quality="fast"):
+            pass
+    with pytest.raises(SettingError, match="mirror=True"):  # noqa: SIM117
+        with viewer.open_viewer(sim.model, sim.data, quality="draft"):
+            pass
+
+
+class SlowViewer:
+    """Stands for MuJoCo's passive viewer: sync() holds the viewer's lock while it "draws",
+    until ``release`` is set (as long as a test wants)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.drawing = threading.Event()
+        self.release = threading.Event()
+        self.running = True
+        self.cam = mujoco.MjvCamera()
+
+    def lock(self):
+        return self._lock
+
+    def sync(self, state_only: bool = False) -> None:
+        with self._lock:
+            self.drawing.set()
+            self.release.wait(60)
+
+    def is_running(self) -> bool:
+        return self.running
+
+    def close(self) -> None:
+        self.running = False
+        self.release.set()
+
+
+def test_a_mirrored_viewers_sync_never_waits_for_drawing(sim):
+    slow = SlowViewer()
+    m = viewer.mirror_model(sim.model, "full")
+    d = mujoco.MjData(m)
+    mirrored = viewer.MirroredViewer(slow, m, d, sim.data)
+    try:
+        mirrored.sync()
+        assert slow.drawing.wait(30)  # the viewer's thread is drawing, and stays stuck there
+
+        def step_and_sync():
+            for _ in range(5):
+                sim.step(10)
+                mirrored.sync()
+
+        stepper = threading.Thread(target=step_and_sync)
+        stepper.start()
+        stepper.join(30)
+        assert not stepper.is_alive()  # five syncs returned while the drawing went on
+        assert mirrored.frames == 0
+        latest = sim.data.qpos.copy()
+        slow.release.set()  # the drawing ends: the latest state is drawn next, once
+        for _ in range(3000):
+            if mirrored.frames == 2:
+                break
+            threading.Event().wait(0.01)
+        assert mirrored.frames == 2
+        np.testing.assert_array_equal(d.qpos, latest)
+        assert d.time == sim.data.time
+        assert d is not sim.data and m is not sim.model  # the physics is never touched
+    finally:
+        mirrored.close()
+    assert not mirrored.is_running()
 
 
 def test_frame_arm_uses_the_scenes_view():
@@ -170,3 +244,41 @@ def test_recording_while_the_viewer_is_open(xvfb, tmp_path):
     frames = iio.imread(video, index=None)
     assert frames.shape == (181, 480, 640, 3)
     assert frames[0].std() > 5 and not (frames[0] == frames[90]).all()
+
+
+@pytest.mark.viewer
+def test_mirrored_viewer_draws_the_draft_meshes_on_a_cpu_renderer(xvfb):
+    out = _run(
+        """
+        import os, threading, time
+        from so101sim import Simulation, ZERO_POSE, gl
+        from so101sim.viewer import VIEWER_NICE, MirroredViewer, open_viewer
+
+        def render_thread_nice():
+            (t,) = [t for t in threading.enumerate() if "_launch_internal" in t.name]
+            return os.getpriority(os.PRIO_PROCESS, t.native_id)
+
+        sim = Simulation()
+        print("software", gl.software_rendering())
+        with open_viewer(sim.model, sim.data) as v:  # the live viewer keeps its priority
+            assert render_thread_nice() == os.getpriority(os.PRIO_PROCESS, 0)
+        for quality in ("auto", "full"):
+            with open_viewer(sim.model, sim.data, mirror=True, quality=quality) as v:
+                assert isinstance(v, MirroredViewer) and v.is_running()
+                assert render_thread_nice() >= VIEWER_NICE  # the drawing yields the CPU
+                sim.move_to(ZERO_POSE, 0.2)
+                v.sync()
+                deadline = time.monotonic() + 60
+                while (v.data.time != sim.data.time) and time.monotonic() < deadline:
+                    time.sleep(0.01)
+                assert (v.data.qpos == sim.data.qpos).all()
+                print(quality, "geoms", v.model.ngeom, sim.model.ngeom)
+        """,
+        xvfb,
+    )
+    assert out.returncode == 0, out.stderr
+    if "software True" not in out.stdout:
+        pytest.skip("OpenGL renders on a GPU here: 'auto' means full meshes")
+    auto, full = (line.split() for line in out.stdout.splitlines()[1:3])
+    assert int(auto[2]) < int(auto[3])  # the draft model leaves the collision meshes out
+    assert int(full[2]) == int(full[3])

@@ -20,6 +20,18 @@ mode nothing moves on its own: :meth:`SO101SimFollower.step` advances simulated 
 ``get_observation`` (``lockstep_observation_seconds``, default 0) advance it by a fixed amount,
 so runs are deterministic (bit-identical observations). One lock guards the MuJoCo data.
 
+**The viewer** (``viewer=True``) draws a copy of the arm (:class:`so101sim.viewer.MirroredViewer`,
+with the shipped draft meshes when OpenGL renders on the CPU: ``viewer_quality``). About 60
+times a wall-clock second the physics copies its state to it, holding the lock for
+microseconds; the viewer's own thread draws it. So the physics never waits for the drawing,
+and what is done in the window (perturbing, sliders) does not reach the physics.
+
+**Threads end with the robot.** ``disconnect()`` stops the physics thread and closes the
+viewer. A robot still connected when the interpreter exits is stopped first, by an ``atexit``
+hook registered at ``connect()`` (a thread stepping MuJoCo while Python finalizes crashes the
+process), and a robot dropped while connected is stopped when it is garbage-collected: the
+threads hold what they use (the simulation, its lock, a stop event), never the robot.
+
 **Safety, as on the real arm.** ``max_relative_target`` clamps each goal to the present
 position ± the cap, with LeRobot's warning; goals beyond a joint's limits are clipped to the
 limits with a warning (the servos' position limits do this on the real arm); the gripper's
@@ -37,12 +49,11 @@ for the viewer and the gripper's force range, which need the MuJoCo model and da
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import logging
-import math
 import threading
 import time
+import weakref
 from collections.abc import Mapping
 from pprint import pformat
 from typing import Any
@@ -52,16 +63,21 @@ import numpy as np
 from .errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, RobotConfigError
 from .model import load_model
 from .robot_actions import clamp_relative, clip_to_limits, parse_action
-from .robot_config import GRIPPER_TORQUE_FRACTION, MODES, SO101SimFollowerConfig, relative_caps
+from .robot_config import (
+    GRIPPER_TORQUE_FRACTION,
+    MODES,
+    VIEWER_QUALITIES,
+    SO101SimFollowerConfig,
+    relative_caps,
+)
 from .robot_helpers import MOTOR_KEYS
-from .simulation import Pacer, Simulation
+from .robot_threads import RobotThreads
+from .simulation import Simulation
 from .units import GRIPPER_INDEX, JOINT_NAMES, LEROBOT_SUFFIX, STARTING_POSE, parse_pose
 from .validation import check_duration
 
 log = logging.getLogger(__name__)
 
-_BLOCK_SECONDS = 0.004  # real-time mode steps the physics in blocks of this much simulated time
-_VIEWER_PERIOD = 1.0 / 60.0  # wall seconds between viewer syncs
 _CLAMP_MESSAGE = "Relative goal position magnitude had to be clamped to be safe.\n%s"  # LeRobot's
 _CLIP_MESSAGE = "Goal position beyond the joint limits was clipped to the limits.\n%s"
 
@@ -114,12 +130,8 @@ class SO101SimFollower:
         self._gripper_forcerange = self._sim.model.actuator_forcerange[self._gripper].copy()
         self._lock = self._sim.lock
         self._connected = False
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._error: BaseException | None = None
-        self._viewer_stack: contextlib.ExitStack | None = None
-        self._viewer: Any = None
-        self._last_sync = -math.inf
+        self._runner = RobotThreads(self._sim, str(self), self.config.speed)  # until connect()
+        self._finalizer: weakref.finalize | None = None
         self._clock = _SimClock(self)
 
     # ------------------------------------------------------------------ LeRobot's interface
@@ -132,13 +144,6 @@ class SO101SimFollower:
 
     def __exit__(self, exc_type: object, exc_value: object, traceback: object) -> None:
         self.disconnect()
-
-    def __del__(self) -> None:
-        try:
-            if self.is_connected:
-                self.disconnect()
-        except Exception:
-            pass
 
     @property
     def _motors_ft(self) -> dict[str, type]:
@@ -176,15 +181,13 @@ class SO101SimFollower:
         if not self.is_calibrated and calibrate:
             self.calibrate()
         self.configure()
+        runner = RobotThreads(self._sim, str(self), self.config.speed)
         if self.config.viewer:
-            self._open_viewer()
-        self._error = None
+            runner.open_viewer(self.config.viewer_quality)
         if self.config.mode == "realtime":
-            self._stop.clear()
-            self._thread = threading.Thread(
-                target=self._run_physics, name=f"so101sim-physics-{self.id}", daemon=True
-            )
-            self._thread.start()
+            runner.start_physics(f"so101sim-physics-{self.id}")
+        self._finalizer = runner.tie_to(self)  # stopped at exit, or when the robot is collected
+        self._runner = runner
         self._connected = True
         log.info("%s connected.", self)
 
@@ -219,7 +222,7 @@ class SO101SimFollower:
             # LeRobot clamps the gripper's reading to its calibrated range (0..100)
             values[GRIPPER_INDEX] = min(100.0, max(0.0, values[GRIPPER_INDEX]))
             if self.config.mode == "lockstep" and self.config.lockstep_observation_seconds:
-                self._advance(self.config.lockstep_observation_seconds)
+                self._runner.advance(self.config.lockstep_observation_seconds)
         return dict(zip(MOTOR_KEYS, values.tolist(), strict=True))
 
     def send_action(self, action: Mapping[str, Any]) -> dict[str, float]:
@@ -252,7 +255,7 @@ class SO101SimFollower:
             full[idx] = sent
             self._sim.command_array(full, check=False)
             if self.config.mode == "lockstep" and self.config.lockstep_action_seconds:
-                self._advance(self.config.lockstep_action_seconds)
+                self._runner.advance(self.config.lockstep_action_seconds)
         return {f"{n}{LEROBOT_SUFFIX}": float(v) for n, v in zip(names, sent, strict=True)}
 
     def disconnect(self) -> None:
@@ -263,14 +266,9 @@ class SO101SimFollower:
         """
         if not self._connected:
             raise self._not_connected()
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join()
-            self._thread = None
-        if self._viewer_stack is not None:
-            self._viewer_stack.close()
-            self._viewer_stack = None
-            self._viewer = None
+        if self._finalizer is not None:
+            self._finalizer()  # stops the threads and removes the exit hook, once
+            self._finalizer = None
         self._connected = False
         log.info("%s disconnected.", self)
 
@@ -298,9 +296,16 @@ class SO101SimFollower:
         return self._lock
 
     @property
+    def viewer(self) -> Any:
+        """The viewer opened by ``viewer=True`` (a :class:`so101sim.viewer.MirroredViewer`:
+        its ``cam``, its ``frames`` drawn so far), or None when none is open."""
+        return self._runner.viewer
+
+    @property
     def viewer_open(self) -> bool:
         """Whether the viewer asked for by ``viewer=True`` is open (False once closed)."""
-        return self._viewer is not None and bool(self._viewer.is_running())
+        viewer = self._runner.viewer
+        return viewer is not None and bool(viewer.is_running())
 
     def goal(self) -> dict[str, float]:
         """The goals the arm is currently driven to (LeRobot keys)."""
@@ -325,7 +330,7 @@ class SO101SimFollower:
             )
         s = check_duration(seconds, "seconds", allow_zero=True)
         with self._lock:
-            self._advance(s)
+            self._runner.advance(s)
             return self._sim.time
 
     # ------------------------------------------------------------------ internals
@@ -337,64 +342,14 @@ class SO101SimFollower:
     def _check_connected(self) -> None:
         if not self._connected:
             raise self._not_connected()
-        if self._error is not None:
-            raise self._error
-
-    def _advance(self, seconds: float) -> None:
-        """Step ``seconds`` of simulated time holding the goals (lock held by the caller)."""
-        n = round(seconds / self._sim.timestep)
-        if n <= 0:
-            return
-        self._sim.step(n)
-        self._sync_viewer()
-
-    def _sync_viewer(self) -> None:
-        if self._viewer is None:
-            return
-        now = time.perf_counter()
-        if now - self._last_sync < _VIEWER_PERIOD:
-            return
-        self._last_sync = now
-        if self._viewer.is_running():
-            self._viewer.sync()
-
-    def _open_viewer(self) -> None:
-        from .viewer import open_viewer
-
-        # open_viewer closes the window and waits for its render thread when the stack closes
-        stack = contextlib.ExitStack()
-        # the viewer draws the live MuJoCo model and data: no Simulation method stands for them
-        self._viewer = stack.enter_context(open_viewer(self._sim.model, self._sim.data))
-        self._viewer_stack = stack
-        self._last_sync = -math.inf
-
-    def _run_physics(self) -> None:
-        """The real-time physics thread: step a block, then sleep until the next block's end
-        is due on the wall clock (absolute deadlines, no drift)."""
-        dt = self._sim.timestep
-        block = max(1, round(_BLOCK_SECONDS / dt)) * dt
-        pacer = Pacer(self.config.speed, sleep=self._stop.wait)
-        with self._lock:
-            t = self._sim.time
-        pacer.wait(t)
-        try:
-            while not self._stop.is_set():
-                pacer.wait(t + block)
-                if self._stop.is_set():
-                    break
-                with self._lock:
-                    self._advance(block)
-                    t = self._sim.time
-        except Exception as exc:  # surfaced by the next call from the user's thread
-            self._error = exc
-            log.error("%s: the physics thread stopped: %s", self, exc)
-        if pacer.lag_events:
-            log.debug("%s: physics fell behind real time %d times", self, pacer.lag_events)
+        if self._runner.error is not None:
+            raise self._runner.error
 
 
 __all__ = [
     "GRIPPER_TORQUE_FRACTION",
     "MODES",
+    "VIEWER_QUALITIES",
     "SO101SimFollower",
     "SO101SimFollowerConfig",
     "parse_action",

@@ -25,6 +25,7 @@ from .validation import (
     check_range,
     is_real,
 )
+from .viewer import VIEWER_QUALITIES
 
 MODES: tuple[str, ...] = ("realtime", "lockstep")
 GRIPPER_TORQUE_FRACTION = 0.5
@@ -108,6 +109,10 @@ class SO101SimFollowerConfig:
     """MJCF file to load instead of the shipped ``scene.xml``."""
     viewer: bool = False
     """Open MuJoCo's passive viewer at ``connect()`` (needs a display)."""
+    viewer_quality: str = "auto"
+    """What the viewer draws: ``"draft"`` (simplified meshes, no shadows: fast on a computer
+    without a GPU), ``"full"`` (the model's meshes), or ``"auto"`` (draft when OpenGL renders on
+    the CPU, e.g. in a VM, WSL or a remote desktop; full on a GPU)."""
     mode: str = "realtime"
     """``"realtime"``: physics runs in the background at ``speed`` × real time.
     ``"lockstep"``: simulated time advances only through ``step()`` and the fixed amounts
@@ -137,6 +142,9 @@ class SO101SimFollowerConfig:
                 f"cameras {sorted(self.cameras)} cannot be simulated yet; expected cameras={{}}"
             )
         check_choice(self.mode, "mode", MODES, error=RobotConfigError)
+        check_choice(
+            self.viewer_quality, "viewer_quality", VIEWER_QUALITIES, error=RobotConfigError
+        )
         relative_caps(self.max_relative_target)
         try:
             parse_pose(self.initial_pose, partial=True)
@@ -162,4 +170,10 @@ class SO101SimFollowerConfig:
         )
 
 
-__all__ = ["GRIPPER_TORQUE_FRACTION", "MODES", "SO101SimFollowerConfig", "relative_caps"]
+__all__ = [
+    "GRIPPER_TORQUE_FRACTION",
+    "MODES",
+    "VIEWER_QUALITIES",
+    "SO101SimFollowerConfig",
+    "relative_caps",
+]
