@@ -92,7 +92,9 @@ class PreparedRun:
         with ExitStack() as stack:
             observers: list[Observer] = list(self.recorder.observers) if self.recorder else []
             if self.viewer.use:
-                handle = stack.enter_context(open_viewer(self.sim.model, self.sim.data))
+                handle = stack.enter_context(
+                    open_viewer(self.sim.model, self.sim.data, mirror=True, quality="auto")
+                )
                 observers.append(ViewerObserver(handle, self.pacer))
             return run_motion(self.sim.model, self.sim.data, self.segments, observers=observers)
 
