@@ -132,15 +132,8 @@ def _judge_joint(
             )
         )
     if j.peak_tracking_error > th.max_tracking_error:
-        out.append(
-            TrackingFinding(
-                step=k,
-                phase=phase,
-                joint=name,
-                error=j.peak_tracking_error,
-                at=j.peak_tracking_time,
-            )
-        )
+        where = {"step": k, "phase": phase, "joint": name}
+        out.append(TrackingFinding(**where, error=j.peak_tracking_error, at=j.peak_tracking_time))
     return out
 
 
