@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 from lerobot.cameras import Camera
+
 from so101sim.robot_cameras import SimCamera
 
 from .config_so101sim import SO101SimCameraConfig

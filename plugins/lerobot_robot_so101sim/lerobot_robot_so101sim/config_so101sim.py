@@ -18,9 +18,12 @@ from typing import Any
 from lerobot.cameras import CameraConfig
 from lerobot.robots import RobotConfig
 from lerobot.teleoperators import TeleoperatorConfig
+
 from so101sim.errors import RobotConfigError
+from so101sim.model import arm_units, load_model
+from so101sim.motionfile import load_motion
 from so101sim.robot import SO101SimFollowerConfig
-from so101sim.units import JOINT_NAMES, STARTING_POSE
+from so101sim.units import STARTING_POSE
 from so101sim.validation import check_range
 
 ROBOT_TYPE = "so101_sim"
@@ -158,11 +161,12 @@ class SO101SimMotionConfig(TeleoperatorConfig):
         self.variation = check_range(
             self.variation, "variation", low=0.0, high=180.0, unit=" deg", error=RobotConfigError
         )
+        if self.motion is not None:  # a bad file fails now, before anything connects
+            load_motion(self.motion, units=arm_units(load_model(self.model)))
 
 
 __all__ = [
     "CAMERA_TYPE",
-    "JOINT_NAMES",
     "MOTION_TELEOP_TYPE",
     "ROBOT_TYPE",
     "SO101SimCameraConfig",

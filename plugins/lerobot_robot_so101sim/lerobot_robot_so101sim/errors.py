@@ -14,6 +14,7 @@ from contextlib import contextmanager
 from typing import Any, TypeVar
 
 from lerobot.utils import errors as lerobot_errors_module
+
 from so101sim import errors as sim_errors
 
 

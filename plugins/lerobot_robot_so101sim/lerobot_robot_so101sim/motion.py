@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 from lerobot.teleoperators import Teleoperator
+
 from so101sim.model import arm_units, load_model
 from so101sim.motion import Move, Segment, commanded_path
 from so101sim.motionfile import lab_motion_path, load_motion

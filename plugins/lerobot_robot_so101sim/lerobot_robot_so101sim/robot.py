@@ -32,6 +32,7 @@ import weakref
 from typing import Any
 
 from lerobot.robots import Robot
+
 from so101sim.robot import SO101SimFollower
 
 from .camera import SO101SimCamera
