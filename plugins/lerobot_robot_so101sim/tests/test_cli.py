@@ -122,8 +122,13 @@ def test_replay_of_episode_0_reaches_the_recorded_states_within_1_degree(dataset
     log = probe(
         tmp_path / "replay.json",
         "lerobot_replay",
-        [*ROBOT, f"--dataset.repo_id={REPO_ID}", f"--dataset.root={dataset}",
-         "--dataset.episode=0", *QUIET],  # fmt: skip
+        [
+            *ROBOT,
+            f"--dataset.repo_id={REPO_ID}",
+            f"--dataset.root={dataset}",
+            "--dataset.episode=0",
+            *QUIET,
+        ],
         tmp_path / "replay.log",
     )
     ds = LeRobotDataset(REPO_ID, root=dataset, episodes=[0])
@@ -139,17 +144,22 @@ def test_replay_of_episode_0_reaches_the_recorded_states_within_1_degree(dataset
 
 def test_rollout_of_a_small_image_policy_trained_on_the_dataset(dataset, tmp_path):
     policy = tmp_path / "policy"
-    out = run(
-        [sys.executable, str(HERE / "train_tiny_act.py"), "--root", str(dataset),
-         "--repo-id", REPO_ID, "--out", str(policy)],  # fmt: skip
-        tmp_path / "train.log",
-    )
+    train = [sys.executable, str(HERE / "train_tiny_act.py"), "--root", str(dataset)]
+    out = run([*train, "--repo-id", REPO_ID, "--out", str(policy)], tmp_path / "train.log")
     assert "observation.images.front, observation.images.wrist" in out
     log = probe(
         tmp_path / "rollout.json",
         "lerobot_rollout",
-        [*ROBOT, "--strategy.type=base", f"--policy.path={policy}", "--device=cpu",
-         "--task=the lab motion", "--duration=3", f"--fps={FPS}", *QUIET],  # fmt: skip
+        [
+            *ROBOT,
+            "--strategy.type=base",
+            f"--policy.path={policy}",
+            "--device=cpu",
+            "--task=the lab motion",
+            "--duration=3",
+            f"--fps={FPS}",
+            *QUIET,
+        ],
         tmp_path / "rollout.log",
     )
     assert len(log["actions"]) >= 5

@@ -97,7 +97,7 @@ def test_bad_config_fails_when_made_naming_the_field():
     from lerobot.cameras.opencv import OpenCVCameraConfig
 
     webcam = OpenCVCameraConfig(index_or_path=0, fps=30, width=640, height=480)
-    with pytest.raises(sim_errors.RobotConfigError, match="'opencv'.*so101_sim"):
+    with pytest.raises(sim_errors.RobotConfigError, match=r"'opencv'.*so101_sim"):
         SO101SimConfig(cameras={"cam": webcam})
     with pytest.raises(sim_errors.RobotConfigError, match="pos and lookat"):
         SO101SimConfig(cameras={"top": plugin.SO101SimCameraConfig()})
@@ -127,7 +127,7 @@ def test_actions_accept_0d_tensors_and_numpy_scalars_and_ignore_other_keys():
         assert all(type(v) is float for v in sent.values())
         with pytest.raises(sim_errors.JointValueError, match="shoulder_pan"):
             robot.send_action({"shoulder_pan.pos": torch.tensor([1.0, 2.0])})
-        with pytest.raises(sim_errors.JointNameError, match="elbow.pos"):
+        with pytest.raises(sim_errors.JointNameError, match=r"elbow\.pos"):
             robot.send_action({"elbow.pos": 1.0})
 
 
@@ -197,7 +197,7 @@ def test_the_wrist_camera_sees_the_gripper_move_and_the_front_camera_sees_the_ar
 def test_a_so101_sim_camera_on_its_own_says_what_to_do():
     cam = plugin.SO101SimCamera(plugin.SO101SimCameraConfig())
     assert not cam.is_connected and cam.find_cameras() == []
-    with pytest.raises(plugin.SimCameraError, match="--robot.cameras"):
+    with pytest.raises(plugin.SimCameraError, match=r"--robot\.cameras"):
         cam.connect()
 
 
@@ -257,7 +257,7 @@ def test_without_loop_the_motion_ends_and_stays_at_its_last_pose():
 def test_a_bad_motion_file_fails_when_the_teleoperator_is_made(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text('start = "rest"\n[[steps]]\nmove = "nowhere"\nduration = 1.0\n')
-    with pytest.raises(sim_errors.MotionFileError, match="bad.toml:3: unknown pose 'nowhere'"):
+    with pytest.raises(sim_errors.MotionFileError, match=r"bad\.toml:3: unknown pose 'nowhere'"):
         SO101SimMotionConfig(motion=str(bad))
 
 
