@@ -49,7 +49,6 @@ for the viewer and the gripper's force range, which need the MuJoCo model and da
 
 from __future__ import annotations
 
-import copy
 import logging
 import threading
 import time
@@ -61,8 +60,8 @@ from typing import Any
 import numpy as np
 
 from .errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, RobotConfigError
-from .model import load_model
 from .robot_actions import clamp_relative, clip_to_limits, parse_action
+from .robot_cameras import CameraRig, SimCamera, scene_model
 from .robot_config import (
     GRIPPER_TORQUE_FRACTION,
     MODES,
@@ -124,8 +123,11 @@ class SO101SimFollower:
         self._caps = relative_caps(self.config.max_relative_target)
         pose = dict(STARTING_POSE)
         pose.update(parse_pose(self.config.initial_pose, partial=True))
-        # A private copy of the model: configure() changes the gripper's force range on it.
-        self._sim = Simulation(copy.copy(load_model(self.config.model)), initial_pose=pose)
+        # A private model (configure() changes the gripper's force range on it), with the
+        # config's cameras added to the scene; the rig renders them (so101sim.robot_cameras).
+        model = scene_model(self.config.cameras, self.config.model)
+        self._sim = Simulation(model, initial_pose=pose)
+        self._rig = CameraRig(self._sim, self.config.cameras)
         self._gripper = int(self._sim.index.actuator[GRIPPER_INDEX])
         self._gripper_forcerange = self._sim.model.actuator_forcerange[self._gripper].copy()
         self._lock = self._sim.lock
@@ -150,9 +152,16 @@ class SO101SimFollower:
         return dict.fromkeys(MOTOR_KEYS, float)
 
     @property
-    def observation_features(self) -> dict[str, type]:
-        """``{"shoulder_pan.pos": float, ..., "gripper.pos": float}`` (no cameras)."""
-        return self._motors_ft
+    def observation_features(self) -> dict[str, type | tuple[int, int, int]]:
+        """``{"shoulder_pan.pos": float, ..., "gripper.pos": float}`` and, per camera,
+        ``{name: (height, width, 3)}``."""
+        return {**self._motors_ft, **self._rig.features}
+
+    @property
+    def cameras(self) -> dict[str, SimCamera]:
+        """The simulated cameras by name (LeRobot's ``robot.cameras``): see
+        :mod:`so101sim.robot_cameras`."""
+        return self._rig.cameras
 
     @property
     def action_features(self) -> dict[str, type]:
@@ -181,11 +190,16 @@ class SO101SimFollower:
         if not self.is_calibrated and calibrate:
             self.calibrate()
         self.configure()
-        runner = RobotThreads(self._sim, str(self), self.config.speed)
-        if self.config.viewer:
-            runner.open_viewer(self.config.viewer_quality)
-        if self.config.mode == "realtime":
-            runner.start_physics(f"so101sim-physics-{self.id}")
+        runner = RobotThreads(self._sim, str(self), self.config.speed, rig=self._rig)
+        self._rig.open()  # cameras: their renderers and their render thread
+        try:
+            if self.config.viewer:
+                runner.open_viewer(self.config.viewer_quality)
+            if self.config.mode == "realtime":
+                runner.start_physics(f"so101sim-physics-{self.id}")
+        except BaseException:
+            runner.stop()  # nothing left running: cameras closed, threads joined
+            raise
         self._finalizer = runner.tie_to(self)  # stopped at exit, or when the robot is collected
         self._runner = runner
         self._connected = True
@@ -204,8 +218,9 @@ class SO101SimFollower:
                 self._gripper_forcerange * self.config.gripper_torque_fraction
             )
 
-    def get_observation(self) -> dict[str, float]:
-        """The measured joint positions: ``{"shoulder_pan.pos": deg, ..., "gripper.pos": %}``.
+    def get_observation(self) -> dict[str, Any]:
+        """The measured joint positions: ``{"shoulder_pan.pos": deg, ..., "gripper.pos": %}``,
+        and a (height, width, 3) uint8 frame per camera, under the camera's name.
 
         The gripper's reading is clamped to 0..100, as LeRobot clamps it to the calibrated
         range; body joints are not clamped (LeRobot's degrees are not either).
@@ -221,9 +236,12 @@ class SO101SimFollower:
             values = self._sim.pose_array()
             # LeRobot clamps the gripper's reading to its calibrated range (0..100)
             values[GRIPPER_INDEX] = min(100.0, max(0.0, values[GRIPPER_INDEX]))
+            shot = self._rig.snapshot()  # cameras: the state they show, copied under the lock
             if self.config.mode == "lockstep" and self.config.lockstep_observation_seconds:
                 self._runner.advance(self.config.lockstep_observation_seconds)
-        return dict(zip(MOTOR_KEYS, values.tolist(), strict=True))
+        obs: dict[str, Any] = dict(zip(MOTOR_KEYS, values.tolist(), strict=True))
+        obs.update(self._rig.render(shot))  # cameras: rendered outside the physics lock
+        return obs
 
     def send_action(self, action: Mapping[str, Any]) -> dict[str, float]:
         """Set new goal positions and return the goals actually sent.

@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from .errors import JointNameError, RobotConfigError, So101SimError
+from .errors import CameraError, JointNameError, RobotConfigError, So101SimError
+from .robot_cameras import parse_cameras
 from .stepping import MAX_SPEED, MIN_SPEED
 from .units import JOINT_NAMES, STARTING_POSE, normalize_joint_name, parse_pose
 from .validation import (
@@ -104,7 +105,10 @@ class SO101SimFollowerConfig:
     use_degrees: bool = True
     """Body joints in degrees. Only True is supported (LeRobot's -100..100 mode is not)."""
     cameras: dict[str, Any] = field(default_factory=dict)
-    """No cameras are simulated yet: must stay empty."""
+    """Simulated cameras by name: ``{}`` or None for a preset (``"front"``, ``"wrist"``), or
+    a dict of :data:`~so101sim.robot_cameras.CAMERA_KEYS` (``width``, ``height``, ``fps``,
+    ``pos``, ``lookat``, ``fovy``, ``body``, ``quality``...). Their frames are in
+    ``get_observation()`` under the camera's name: see :mod:`so101sim.robot_cameras`."""
     model: str | Path | None = None
     """MJCF file to load instead of the shipped ``scene.xml``."""
     viewer: bool = False
@@ -137,10 +141,10 @@ class SO101SimFollowerConfig:
                 "supported by the simulated follower; it reports body joints in degrees only: "
                 "set use_degrees=True"
             )
-        if self.cameras:
-            raise RobotConfigError(
-                f"cameras {sorted(self.cameras)} cannot be simulated yet; expected cameras={{}}"
-            )
+        try:  # cameras: checked here, built at connect (so101sim.robot_cameras)
+            parse_cameras(self.cameras)
+        except CameraError as exc:
+            raise RobotConfigError(f"cameras: {exc}") from None
         check_choice(self.mode, "mode", MODES, error=RobotConfigError)
         check_choice(
             self.viewer_quality, "viewer_quality", VIEWER_QUALITIES, error=RobotConfigError
