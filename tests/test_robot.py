@@ -133,24 +133,6 @@ def test_lockstep_action_seconds_advances_time_per_send():
         assert robot.time == pytest.approx(t0 + 5 * 0.02)
 
 
-def test_lockstep_at_30_hz_keeps_the_datasets_clock():
-    """1/30 s is 16.67 steps of 2 ms: the remainder is carried, so 30 actions are exactly 1 s
-    of simulated time (rounding each to 17 steps would run 2 % fast)."""
-    robot = SO101SimFollower(
-        SO101SimFollowerConfig(mode="lockstep", lockstep_action_seconds=1 / 30)
-    )
-    with robot:
-        t0 = robot.time
-        times = []
-        for _ in range(30):
-            robot.send_action({"gripper.pos": 10.0})
-            times.append(robot.time - t0)
-        assert times[-1] == pytest.approx(1.0, abs=1e-9)
-        # never more than one physics step away from the loop's own clock
-        for i, t in enumerate(times, start=1):
-            assert abs(t - i / 30) < 0.002  # one physics step
-
-
 def test_step_errors():
     robot = SO101SimFollower(SO101SimFollowerConfig(mode="lockstep"))
     with pytest.raises(DeviceNotConnectedError):

@@ -50,7 +50,6 @@ class RobotThreads:
         self.viewer: Any = None
         self._viewer_stack: contextlib.ExitStack | None = None
         self._last_sync = -math.inf
-        self._owed = 0.0  # simulated seconds asked for but not yet stepped (under one step)
 
     def tie_to(self, owner: object) -> weakref.finalize:
         """Stop these threads at interpreter exit (an ``atexit`` hook registered now, so it
@@ -93,14 +92,9 @@ class RobotThreads:
 
     def advance(self, seconds: float) -> None:
         """Step ``seconds`` of simulated time holding the goals (lock held by the caller)."""
-        # whole steps, carrying the remainder to the next call: a 30 Hz loop on a 2 ms step
-        # advances 16, 17, 17 steps, exactly 0.1 s per three calls, with no drift
-        dt = self.sim.timestep
-        self._owed += seconds
-        n = math.floor(self._owed / dt + 1e-6)
+        n = round(seconds / self.sim.timestep)
         if n <= 0:
             return
-        self._owed = max(0.0, self._owed - n * dt)
         self.sim.step(n)
         self.sync_viewer()
 
