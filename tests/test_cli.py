@@ -226,3 +226,45 @@ def test_building_the_parser_imports_no_mujoco_nor_numpy():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["False", "False"]
+
+
+# ---------------------------------------------------------------------------- camera options
+def test_camera_options_reach_the_videos_settings():
+    argv = ["run", "--record", "a.mp4", "--view", "side", "--azimuth=-45", "--elevation", "-30",
+            "--distance", "1.5", "--lookat=0.2,0,0.1"]  # fmt: skip
+    settings = cli._outputs(build_parser().parse_args(argv)).settings.validated()
+    assert settings.view == "side" and settings.azimuth == -45.0
+    assert settings.elevation == -30.0 and settings.distance == 1.5
+    assert settings.lookat == (0.2, 0.0, 0.1)
+    args = build_parser().parse_args(["hold", "--record", "a.mp4", "--view", "top"])
+    settings = cli._outputs(args).settings
+    assert settings.view == "top" and settings.azimuth is None and settings.lookat is None
+
+
+def test_the_parsers_views_are_the_framings():
+    from so101sim.cli_tools import VIEW_CHOICES
+    from so101sim.framing import NAMED_VIEWS
+
+    assert set(VIEW_CHOICES) == set(NAMED_VIEWS)
+
+
+@pytest.mark.parametrize(
+    ("option", "said"),
+    [
+        (["--azimuth", "abc"], "--azimuth 'abc' is not a number; expected a number of degrees"),
+        (["--lookat", "1,2"], "expected three numbers X,Y,Z"),
+        (["--lookat", "0,x,0"], "--lookat 'x' is not a number; expected three numbers X,Y,Z"),
+        (["--elevation", "95"], "elevation = 95.0 is invalid; expected"),
+        (["--distance", "nan"], "distance = nan"),
+    ],
+)
+def test_bad_camera_options_are_one_line_errors_before_anything_runs(
+    option, said, tmp_path, capsys
+):
+    video = tmp_path / "a.mp4"
+    for command in (["run"], ["hold", "--duration", "0.2"]):
+        assert main([*command, "--record", str(video), *option]) == 2
+        out, err = capsys.readouterr()
+        assert said in err and len(err.strip().splitlines()) == 1, err
+        assert "steps]" not in out  # nothing simulated
+        assert list(tmp_path.iterdir()) == []

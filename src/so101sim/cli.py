@@ -38,7 +38,7 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 from . import __version__
-from .cli_tools import add_commands, split_script_args
+from .cli_tools import add_camera_options, add_commands, camera_options, split_script_args
 from .errors import So101SimError
 from .validation import check_duration
 
@@ -240,6 +240,7 @@ def _recording_parent() -> argparse.ArgumentParser:
         default=True,
         help="draw the time and phase into the video (default: on)",
     )
+    add_camera_options(g)
     g.add_argument("--force", action="store_true", help="overwrite existing output files")
     return p
 
@@ -349,7 +350,9 @@ def _outputs(args: argparse.Namespace) -> Outputs:
     from .runplan import Outputs
 
     fields = ("width", "height", "fps", "camera", "quality", "caption")
-    settings = VideoSettings(**{name: getattr(args, name) for name in fields})
+    settings = VideoSettings(
+        **{name: getattr(args, name) for name in fields}, **camera_options(args)
+    )
     return Outputs(args.record, args.plot, args.log, settings, force=args.force)
 
 
