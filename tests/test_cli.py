@@ -268,3 +268,9 @@ def test_bad_camera_options_are_one_line_errors_before_anything_runs(
         assert said in err and len(err.strip().splitlines()) == 1, err
         assert "steps]" not in out  # nothing simulated
         assert list(tmp_path.iterdir()) == []
+
+
+def test_check_with_no_file_checks_the_lab_motion(capsys):
+    assert main(["check"]) == 0
+    out = capsys.readouterr().out
+    assert "to_zero" in out and "return" in out and out.strip().endswith("PASS")

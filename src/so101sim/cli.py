@@ -2,7 +2,7 @@
 
 so101sim run [MOTION]   a motion file, by default the lab motion (viewer on a desktop)
 so101sim pose           pose the arm in the viewer; prints each pose as a dict and as TOML
-so101sim check MOTION   simulate a motion headless and judge it: PASS or FAIL
+so101sim check [MOTION] simulate a motion (default: the lab motion) headless and judge it: PASS or FAIL
 so101sim hold           hold the starting pose (the lab's first script)
 so101sim view           open the model in MuJoCo's interactive viewer
 so101sim model-path     print the folder of the shipped model
@@ -318,7 +318,9 @@ _THRESHOLD_OPTIONS = (  # check's thresholds: (flag, default, help)
 
 
 def _add_check_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("motion", help="the TOML motion file to check")
+    p.add_argument(
+        "motion", nargs="?", help="the TOML motion file to check (default: the lab motion)"
+    )
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     for flag, default, text in _THRESHOLD_OPTIONS:
         p.add_argument(flag, type=float, default=default, help=f"{text} (default {default:g})")
@@ -441,14 +443,14 @@ def cmd_pose(args: argparse.Namespace) -> int:
 def cmd_check(args: argparse.Namespace) -> int:
     import json
 
-    from .preflight import Thresholds, check_motion_file, format_report  # imports MuJoCo
+    from .motionfile import lab_motion_path  # imported here: they import MuJoCo
+    from .preflight import Thresholds, check_motion_file, format_report
 
     names = ("max_effort", "max_saturation", "max_tracking_error", "limit_margin")
     # a bad threshold is a SettingError: main() reports it
     thresholds = Thresholds(**{name: getattr(args, name) for name in names})
-    report = check_motion_file(
-        args.motion, model=args.model, thresholds=thresholds, strict=args.strict
-    )
+    motion = args.motion if args.motion else lab_motion_path()
+    report = check_motion_file(motion, model=args.model, thresholds=thresholds, strict=args.strict)
     print(json.dumps(report.to_dict(), indent=2) if args.json else format_report(report))
     return 0 if report.passed else 1
 
