@@ -2,7 +2,7 @@
 
 so101sim run [MOTION]   a motion file, by default the lab motion (viewer on a desktop)
 so101sim pose           pose the arm in the viewer; prints each pose as a dict and as TOML
-so101sim check [MOTION] simulate a motion (default: the lab motion) headless and judge it: PASS or FAIL
+so101sim check [MOTION] simulate a motion (default: the lab motion) headless; PASS or FAIL
 so101sim hold           hold the starting pose (the lab's first script)
 so101sim view           open the model in MuJoCo's interactive viewer
 so101sim model-path     print the folder of the shipped model
@@ -417,12 +417,17 @@ def cmd_model_path(args: argparse.Namespace) -> int:
 
 
 def cmd_pose(args: argparse.Namespace) -> int:
-    from . import viewer  # imported here: they import MuJoCo
-    from .posefinder import format_python, format_toml, pose_scene, watch_poses
+    from .posefinder import (  # imported here: they import MuJoCo
+        format_python,
+        format_toml,
+        open_pose_viewer,
+        pose_scene,
+        watch_poses,
+    )
 
     m, d = pose_scene(args.model)
     # Open the viewer first: without a display its error is all the user sees.
-    with viewer.open_viewer(m, d, show_ui=True) as handle:
+    with open_pose_viewer(m, d) as handle:
         print(
             "Move the joint sliders (right panel, 'Joint'), or double-click a part and "
             "Ctrl+right-drag it. Each pose the arm is left in is printed below; close the "
