@@ -274,3 +274,28 @@ def test_check_with_no_file_checks_the_lab_motion(capsys):
     assert main(["check"]) == 0
     out = capsys.readouterr().out
     assert "to_zero" in out and "return" in out and out.strip().endswith("PASS")
+
+
+@pytest.mark.parametrize("command", ["run", "check"])
+def test_a_video_given_as_the_motion_file_says_to_use_record(command, tmp_path, capsys):
+    video = tmp_path / "lab.mp4"
+    video.write_bytes(b"\x00\x00\x00\x18ftypmp42\x9f\xff" * 10)
+    flag = "--record" if command == "run" else "so101sim run --record"
+    for path in (video, tmp_path / "new.mp4", tmp_path / "plot.png"):  # and one not there yet
+        assert main([command, str(path)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "Traceback" not in err and "codec" not in err
+        assert f"{path}: " in err and "expected a TOML motion file" in err
+        if path.suffix == ".mp4":
+            assert err.endswith(f"to write a video use {flag} {path}")
+        else:
+            assert err.endswith(f"to write a plot use {flag.replace('record', 'plot')} {path}")
+
+
+def test_a_binary_file_is_not_a_motion_file(tmp_path, capsys):
+    blob = tmp_path / "motion.bin"
+    blob.write_bytes(bytes(range(256)))
+    assert main(["run", str(blob)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"so101sim: error: {blob}: not a motion file: it is not UTF-8 text")
+    assert "--record" not in err and len(err.splitlines()) == 1

@@ -38,7 +38,13 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 from . import __version__
-from .cli_tools import add_camera_options, add_commands, camera_options, split_script_args
+from .cli_tools import (
+    add_camera_options,
+    add_commands,
+    camera_options,
+    output_hint,
+    split_script_args,
+)
 from .errors import So101SimError
 from .validation import check_duration
 
@@ -385,7 +391,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     _prepare_rendering(args)
     from .motionfile import lab_motion_path, load_motion  # imported here: they import MuJoCo
 
-    motion = load_motion(args.motion if args.motion else lab_motion_path())
+    with output_hint(args.motion):
+        motion = load_motion(args.motion if args.motion else lab_motion_path())
     return _run(args, motion.steps, motion.start, strict=args.strict)
 
 
@@ -455,7 +462,10 @@ def cmd_check(args: argparse.Namespace) -> int:
     # a bad threshold is a SettingError: main() reports it
     thresholds = Thresholds(**{name: getattr(args, name) for name in names})
     motion = args.motion if args.motion else lab_motion_path()
-    report = check_motion_file(motion, model=args.model, thresholds=thresholds, strict=args.strict)
+    with output_hint(args.motion, "so101sim run "):
+        report = check_motion_file(
+            motion, model=args.model, thresholds=thresholds, strict=args.strict
+        )
     print(json.dumps(report.to_dict(), indent=2) if args.json else format_report(report))
     return 0 if report.passed else 1
 

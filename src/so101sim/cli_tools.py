@@ -8,17 +8,44 @@ keep start-up fast.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import traceback
+from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
-from .errors import RecordingError
+from .errors import MotionFileError, RecordingError
 
 SubParsers = Any  # argparse's private _SubParsersAction
 
 # framing.NAMED_VIEWS (a test checks they agree), repeated: the parser imports no MuJoCo
 VIEW_CHOICES = ("default", "front", "side", "top")
 CAMERA_NUMBERS = ("azimuth", "elevation", "distance")
+
+
+# the option that writes a file of this kind, for a motion file named like one
+OUTPUT_OPTIONS = {
+    **dict.fromkeys((".mp4", ".mkv", ".mov", ".avi", ".webm", ".gif"), ("--record", "a video")),
+    **dict.fromkeys((".png", ".jpg", ".svg", ".pdf"), ("--plot", "a plot")),
+    ".csv": ("--log", "a log"),
+}
+
+
+@contextlib.contextmanager
+def output_hint(motion: str | None, command: str = "") -> Iterator[None]:
+    """Add to a motion file that cannot be read, named like an output (``run lab.mp4``, the
+    user forgot ``--record``), which option (of ``command``, if not this one) writes it."""
+    try:
+        yield
+    except MotionFileError as exc:
+        option = OUTPUT_OPTIONS.get(Path(motion or "").suffix.lower())
+        if option is None or exc.line != 0:
+            raise
+        flag, kind = option
+        raise MotionFileError(
+            exc.path, 0, f"{exc.reason}; to write {kind} use {command}{flag} {motion}"
+        ) from None
 
 
 # ---------------------------------------------------------------------------- camera options
