@@ -299,3 +299,10 @@ def test_a_binary_file_is_not_a_motion_file(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"so101sim: error: {blob}: not a motion file: it is not UTF-8 text")
     assert "--record" not in err and len(err.splitlines()) == 1
+
+
+def test_a_video_in_a_folder_that_cannot_hold_files_is_a_one_line_error(capsys):
+    assert main(["hold", "--duration", "0.1", "--record", "/proc/lab.mp4"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("so101sim: error: cannot write the video '/proc/lab.mp4'")
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
