@@ -70,6 +70,8 @@ def _modules() -> dict[str, Path]:
     mods = {}
     for p in PACKAGE.rglob("*.py"):
         parts = p.relative_to(PACKAGE).with_suffix("").parts
+        if parts[0] == "data":  # shipped files (the examples), not modules of the package
+            continue
         name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
         if name:  # the package's own __init__ only re-exports, lazily, by name
             mods[name] = p

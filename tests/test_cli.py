@@ -226,3 +226,83 @@ def test_building_the_parser_imports_no_mujoco_nor_numpy():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["False", "False"]
+
+
+# ---------------------------------------------------------------------------- camera options
+def test_camera_options_reach_the_videos_settings():
+    argv = ["run", "--record", "a.mp4", "--view", "side", "--azimuth=-45", "--elevation", "-30",
+            "--distance", "1.5", "--lookat=0.2,0,0.1"]  # fmt: skip
+    settings = cli._outputs(build_parser().parse_args(argv)).settings.validated()
+    assert settings.view == "side" and settings.azimuth == -45.0
+    assert settings.elevation == -30.0 and settings.distance == 1.5
+    assert settings.lookat == (0.2, 0.0, 0.1)
+    args = build_parser().parse_args(["hold", "--record", "a.mp4", "--view", "top"])
+    settings = cli._outputs(args).settings
+    assert settings.view == "top" and settings.azimuth is None and settings.lookat is None
+
+
+def test_the_parsers_views_are_the_framings():
+    from so101sim.cli_tools import VIEW_CHOICES
+    from so101sim.framing import NAMED_VIEWS
+
+    assert set(VIEW_CHOICES) == set(NAMED_VIEWS)
+
+
+@pytest.mark.parametrize(
+    ("option", "said"),
+    [
+        (["--azimuth", "abc"], "--azimuth 'abc' is not a number; expected a number of degrees"),
+        (["--lookat", "1,2"], "expected three numbers X,Y,Z"),
+        (["--lookat", "0,x,0"], "--lookat 'x' is not a number; expected three numbers X,Y,Z"),
+        (["--elevation", "95"], "elevation = 95.0 is invalid; expected"),
+        (["--distance", "nan"], "distance = nan"),
+    ],
+)
+def test_bad_camera_options_are_one_line_errors_before_anything_runs(
+    option, said, tmp_path, capsys
+):
+    video = tmp_path / "a.mp4"
+    for command in (["run"], ["hold", "--duration", "0.2"]):
+        assert main([*command, "--record", str(video), *option]) == 2
+        out, err = capsys.readouterr()
+        assert said in err and len(err.strip().splitlines()) == 1, err
+        assert "steps]" not in out  # nothing simulated
+        assert list(tmp_path.iterdir()) == []
+
+
+def test_check_with_no_file_checks_the_lab_motion(capsys):
+    assert main(["check"]) == 0
+    out = capsys.readouterr().out
+    assert "to_zero" in out and "return" in out and out.strip().endswith("PASS")
+
+
+@pytest.mark.parametrize("command", ["run", "check"])
+def test_a_video_given_as_the_motion_file_says_to_use_record(command, tmp_path, capsys):
+    video = tmp_path / "lab.mp4"
+    video.write_bytes(b"\x00\x00\x00\x18ftypmp42\x9f\xff" * 10)
+    flag = "--record" if command == "run" else "so101sim run --record"
+    for path in (video, tmp_path / "new.mp4", tmp_path / "plot.png"):  # and one not there yet
+        assert main([command, str(path)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "Traceback" not in err and "codec" not in err
+        assert f"{path}: " in err and "expected a TOML motion file" in err
+        if path.suffix == ".mp4":
+            assert err.endswith(f"to write a video use {flag} {path}")
+        else:
+            assert err.endswith(f"to write a plot use {flag.replace('record', 'plot')} {path}")
+
+
+def test_a_binary_file_is_not_a_motion_file(tmp_path, capsys):
+    blob = tmp_path / "motion.bin"
+    blob.write_bytes(bytes(range(256)))
+    assert main(["run", str(blob)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"so101sim: error: {blob}: not a motion file: it is not UTF-8 text")
+    assert "--record" not in err and len(err.splitlines()) == 1
+
+
+def test_a_video_in_a_folder_that_cannot_hold_files_is_a_one_line_error(capsys):
+    assert main(["hold", "--duration", "0.1", "--record", "/proc/lab.mp4"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("so101sim: error: cannot write the video '/proc/lab.mp4'")
+    assert len(err.splitlines()) == 1 and "Traceback" not in err

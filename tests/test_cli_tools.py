@@ -53,3 +53,46 @@ def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
     assert "deleted 1 compiled model(s)" in capsys.readouterr().out
     assert modelcache.info().entries == 0
     pytest.importorskip("mujoco")
+
+
+def _spy_on_recorders(monkeypatch):
+    from so101sim import handin
+
+    seen = []
+
+    class Spy(handin.Recorder):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            seen.append(self.settings)
+
+    monkeypatch.setattr(handin, "Recorder", Spy)
+    return seen
+
+
+def test_record_takes_the_camera_options(tmp_path, capsys, monkeypatch):
+    seen = _spy_on_recorders(monkeypatch)
+    script = tmp_path / "short.py"
+    script.write_text(
+        "import sys, mujoco, mujoco.viewer\n"
+        "m = mujoco.MjModel.from_xml_path(sys.argv[1]); d = mujoco.MjData(m)\n"
+        "with mujoco.viewer.launch_passive(m, d) as v:\n"
+        "    for _ in range(20):\n"
+        "        mujoco.mj_step(m, d); v.sync()\n"
+    )
+    argv = ["record", str(script), "-o", str(tmp_path / "s.mp4"), "--width", "64", "--height",
+            "48", "--view", "top", "--azimuth", "30", "--elevation=-60", "--distance", "2",
+            "--lookat=0.1,0,0.05", "--", str(scene_path())]  # fmt: skip
+    assert cli.main(argv) == 0, capsys.readouterr().err
+    [settings] = seen
+    assert (settings.view, settings.azimuth, settings.elevation) == ("top", 30.0, -60.0)
+    assert settings.distance == 2.0 and settings.lookat == (0.1, 0.0, 0.05)
+
+
+def test_record_checks_the_camera_options_before_the_script_runs(tmp_path, capsys):
+    script = tmp_path / "loud.py"
+    script.write_text("print('the script ran')\n")
+    argv = ["record", str(script), "-o", str(tmp_path / "l.mp4"), "--elevation", "-120"]
+    assert cli.main(argv) == 2
+    out, err = capsys.readouterr()
+    assert "the script ran" not in out and "elevation = -120.0 is invalid" in err
+    assert not (tmp_path / "l.mp4").exists()

@@ -66,17 +66,18 @@ def test_record_lab_example_writes_video_plot_and_log_where_it_runs(tmp_path):
 
     out = run("record_lab.py", cwd=tmp_path)
     assert "largest tracking error on the way back: ('" in out
-    for kind, name in (("video", "lab.mp4"), ("plot", "lab.png"), ("log", "lab.csv")):
+    for kind, ext in (("video", "mp4"), ("plot", "png"), ("log", "csv")):
+        name = f"record_lab.{ext}"  # not lab.mp4: the CLI snippets in the docs write those
         assert f"{kind}: {name}" in out
         assert (tmp_path / name).stat().st_size > 0
-    frames, _ = imageio_ffmpeg.count_frames_and_secs(str(tmp_path / "lab.mp4"))
+    frames, _ = imageio_ffmpeg.count_frames_and_secs(str(tmp_path / "record_lab.mp4"))
     assert frames == 181  # 6 s at 30 frames/s, t = 0 included
-    with open(tmp_path / "lab.csv", newline="") as f:
+    with open(tmp_path / "record_lab.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == 3000  # one row per 2 ms step
     assert [r["phase"] for r in (rows[0], rows[1500], rows[-1])] == ["to_zero", "hold", "return"]
     assert float(rows[-1]["time"]) == pytest.approx(6.0)
-    assert imageio.imread(tmp_path / "lab.png").ndim == 3
+    assert imageio.imread(tmp_path / "record_lab.png").ndim == 3
 
 
 def test_check_then_run_example_runs_from_any_folder(tmp_path):

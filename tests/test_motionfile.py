@@ -378,13 +378,15 @@ def test_files_past_a_mebibyte_are_refused(tmp_path):
     [
         (b"\x7fELF\x02\x01\x01\x00\xd0\xff", "not UTF-8"),  # a program, say /bin/ls
         (b"[[steps]]\nhold = 1\n\xff\n", "not UTF-8"),
+        (b"\x00\x00\x00\x18ftypmp42", "NUL bytes"),  # valid UTF-8, but binary (a video)
     ],
 )
 def test_files_that_are_not_text_are_refused(tmp_path, content, match):
     path = tmp_path / "m.toml"
     path.write_bytes(content)
-    with pytest.raises(MotionFileError, match=match):
+    with pytest.raises(MotionFileError, match=match) as exc:
         load_motion(path)
+    assert "not a motion file" in str(exc.value) and "--" not in str(exc.value)  # no CLI hint
 
 
 def test_paths_that_cannot_name_a_file_are_refused(tmp_path):

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from so101sim import cli, posefinder
+from so101sim.errors import ViewerError
 from so101sim.model import arm_index, arm_units, default_units
 from so101sim.motionfile import parse_motion
 from so101sim.posefinder import (
@@ -140,6 +141,7 @@ def test_cli_pose_prints_each_pose_as_a_dict_and_as_toml(monkeypatch, capsys):
         yield FakeViewer(m, d, sliders={8: SLIDER_POSE}, syncs=25)
 
     monkeypatch.setattr("so101sim.viewer.open_viewer", fake_open_viewer)
+    monkeypatch.setattr("so101sim.viewer.has_display", lambda: True)
     monkeypatch.setattr(posefinder, "Pacer", _fast_pacer)
     assert cli.main(["pose"]) == 0
     assert made["kwargs"].get("show_ui") is True  # the joint sliders are shown
@@ -172,3 +174,17 @@ def test_cli_pose_without_a_display_gives_only_the_error(monkeypatch, capsys):
     captured = capsys.readouterr()
     assert "no display" in captured.err
     assert captured.out == ""  # no instructions for a window that never opened
+
+
+def test_without_a_display_the_message_is_true_for_a_script_and_the_command(monkeypatch, capsys):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr("sys.platform", "linux")
+    m, d = posefinder.pose_scene()
+    with pytest.raises(ViewerError) as caught:
+        posefinder.open_pose_viewer(m, d)
+    message = str(caught.value)
+    assert "no display" in message and "--headless" not in message  # pose has no --headless
+    assert cli.main(["pose"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"so101sim: error: {message}" and len(err.splitlines()) == 1

@@ -630,3 +630,22 @@ def test_a_disconnected_robot_leaves_nothing_behind():
         gc.collect()
         assert sim() is None  # no exit hook holds its simulation
     assert set(threading.enumerate()) == before
+
+
+def test_a_config_field_the_sim_lacks_says_which_fields_exist():
+    import dataclasses
+    import pickle
+
+    with pytest.raises(RobotConfigError) as info:
+        SO101SimFollowerConfig(port="/dev/ttyACM0")  # a real arm's config
+    message = str(info.value)
+    assert "has no field 'port'" in message and "no serial port" in message
+    assert "its fields are id, max_relative_target," in message and "speed" in message
+    assert len(message.splitlines()) == 1
+    with pytest.raises(RobotConfigError, match="has no field 'calibration_dir'; its fields"):
+        SO101SimFollowerConfig(id="a", calibration_dir="/tmp")
+    with pytest.raises(RobotConfigError, match="keyword arguments only"):
+        SO101SimFollowerConfig("my_arm")
+    config = SO101SimFollowerConfig(id="a", speed=2.0)  # still a plain dataclass
+    assert dataclasses.replace(config, speed=3.0).speed == 3.0
+    assert pickle.loads(pickle.dumps(config)) == config

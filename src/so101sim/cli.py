@@ -2,7 +2,7 @@
 
 so101sim run [MOTION]   a motion file, by default the lab motion (viewer on a desktop)
 so101sim pose           pose the arm in the viewer; prints each pose as a dict and as TOML
-so101sim check MOTION   simulate a motion headless and judge it: PASS or FAIL
+so101sim check [MOTION] simulate a motion (default: the lab motion) headless; PASS or FAIL
 so101sim hold           hold the starting pose (the lab's first script)
 so101sim view           open the model in MuJoCo's interactive viewer
 so101sim model-path     print the folder of the shipped model
@@ -38,7 +38,13 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 from . import __version__
-from .cli_tools import add_commands, split_script_args
+from .cli_tools import (
+    add_camera_options,
+    add_commands,
+    camera_options,
+    output_hint,
+    split_script_args,
+)
 from .errors import So101SimError
 from .validation import check_duration
 
@@ -240,6 +246,7 @@ def _recording_parent() -> argparse.ArgumentParser:
         default=True,
         help="draw the time and phase into the video (default: on)",
     )
+    add_camera_options(g)
     g.add_argument("--force", action="store_true", help="overwrite existing output files")
     return p
 
@@ -317,7 +324,9 @@ _THRESHOLD_OPTIONS = (  # check's thresholds: (flag, default, help)
 
 
 def _add_check_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("motion", help="the TOML motion file to check")
+    p.add_argument(
+        "motion", nargs="?", help="the TOML motion file to check (default: the lab motion)"
+    )
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     for flag, default, text in _THRESHOLD_OPTIONS:
         p.add_argument(flag, type=float, default=default, help=f"{text} (default {default:g})")
@@ -349,7 +358,9 @@ def _outputs(args: argparse.Namespace) -> Outputs:
     from .runplan import Outputs
 
     fields = ("width", "height", "fps", "camera", "quality", "caption")
-    settings = VideoSettings(**{name: getattr(args, name) for name in fields})
+    settings = VideoSettings(
+        **{name: getattr(args, name) for name in fields}, **camera_options(args)
+    )
     return Outputs(args.record, args.plot, args.log, settings, force=args.force)
 
 
@@ -380,7 +391,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     _prepare_rendering(args)
     from .motionfile import lab_motion_path, load_motion  # imported here: they import MuJoCo
 
-    motion = load_motion(args.motion if args.motion else lab_motion_path())
+    with output_hint(args.motion):
+        motion = load_motion(args.motion if args.motion else lab_motion_path())
     return _run(args, motion.steps, motion.start, strict=args.strict)
 
 
@@ -412,12 +424,17 @@ def cmd_model_path(args: argparse.Namespace) -> int:
 
 
 def cmd_pose(args: argparse.Namespace) -> int:
-    from . import viewer  # imported here: they import MuJoCo
-    from .posefinder import format_python, format_toml, pose_scene, watch_poses
+    from .posefinder import (  # imported here: they import MuJoCo
+        format_python,
+        format_toml,
+        open_pose_viewer,
+        pose_scene,
+        watch_poses,
+    )
 
     m, d = pose_scene(args.model)
     # Open the viewer first: without a display its error is all the user sees.
-    with viewer.open_viewer(m, d, show_ui=True) as handle:
+    with open_pose_viewer(m, d) as handle:
         print(
             "Move the joint sliders (right panel, 'Joint'), or double-click a part and "
             "Ctrl+right-drag it. Each pose the arm is left in is printed below; close the "
@@ -438,14 +455,17 @@ def cmd_pose(args: argparse.Namespace) -> int:
 def cmd_check(args: argparse.Namespace) -> int:
     import json
 
-    from .preflight import Thresholds, check_motion_file, format_report  # imports MuJoCo
+    from .motionfile import lab_motion_path  # imported here: they import MuJoCo
+    from .preflight import Thresholds, check_motion_file, format_report
 
     names = ("max_effort", "max_saturation", "max_tracking_error", "limit_margin")
     # a bad threshold is a SettingError: main() reports it
     thresholds = Thresholds(**{name: getattr(args, name) for name in names})
-    report = check_motion_file(
-        args.motion, model=args.model, thresholds=thresholds, strict=args.strict
-    )
+    motion = args.motion if args.motion else lab_motion_path()
+    with output_hint(args.motion, "so101sim run "):
+        report = check_motion_file(
+            motion, model=args.model, thresholds=thresholds, strict=args.strict
+        )
     print(json.dumps(report.to_dict(), indent=2) if args.json else format_report(report))
     return 0 if report.passed else 1
 

@@ -1,16 +1,100 @@
 """More ``so101sim`` commands: ``record`` (a student's own script to a video), ``workspace``,
-``cache`` and ``examples``. Like :mod:`so101sim.cli`, they only parse and print: each calls
-one library function. Heavy modules are imported inside the commands, to keep start-up fast.
+``cache`` and ``examples``, and the camera options every recording command shares
+(:func:`add_camera_options`, :func:`camera_options`). Like :mod:`so101sim.cli`, they only parse
+and print: each calls one library function. Heavy modules are imported inside the commands, to
+keep start-up fast.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import traceback
+from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
+from .errors import MotionFileError, RecordingError
+
 SubParsers = Any  # argparse's private _SubParsersAction
+
+# framing.NAMED_VIEWS (a test checks they agree), repeated: the parser imports no MuJoCo
+VIEW_CHOICES = ("default", "front", "side", "top")
+CAMERA_NUMBERS = ("azimuth", "elevation", "distance")
+
+
+# the option that writes a file of this kind, for a motion file named like one
+OUTPUT_OPTIONS = {
+    **dict.fromkeys((".mp4", ".mkv", ".mov", ".avi", ".webm", ".gif"), ("--record", "a video")),
+    **dict.fromkeys((".png", ".jpg", ".svg", ".pdf"), ("--plot", "a plot")),
+    ".csv": ("--log", "a log"),
+}
+
+
+@contextlib.contextmanager
+def output_hint(motion: str | None, command: str = "") -> Iterator[None]:
+    """Add to a motion file that cannot be read, named like an output (``run lab.mp4``, the
+    user forgot ``--record``), which option (of ``command``, if not this one) writes it."""
+    try:
+        yield
+    except MotionFileError as exc:
+        option = OUTPUT_OPTIONS.get(Path(motion or "").suffix.lower())
+        if option is None or exc.line != 0:
+            raise
+        flag, kind = option
+        raise MotionFileError(
+            exc.path, 0, f"{exc.reason}; to write {kind} use {command}{flag} {motion}"
+        ) from None
+
+
+# ---------------------------------------------------------------------------- camera options
+def add_camera_options(g: argparse._ArgumentGroup) -> None:
+    """The free camera's options of a recording command: --view, --azimuth, --elevation,
+    --distance, --lookat. Numbers are read as text and checked by :func:`camera_options`, so a
+    bad one is a one-line error (and a negative one may be written ``--azimuth=-45``)."""
+    g.add_argument(
+        "--view",
+        choices=VIEW_CHOICES,
+        default="default",
+        help="direction of the free camera, fitted to the arm's motion (default: default)",
+    )
+    g.add_argument("--azimuth", metavar="DEG", help="camera direction around the vertical, degrees")
+    g.add_argument(
+        "--elevation", metavar="DEG", help="camera elevation, degrees (-90 looks straight down)"
+    )
+    g.add_argument("--distance", metavar="M", help="camera distance from --lookat, metres")
+    g.add_argument(
+        "--lookat", metavar="X,Y,Z", help="point the camera looks at, metres (e.g. 0.2,0,0.1)"
+    )
+
+
+def _number(text: str, option: str, expected: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise RecordingError(f"--{option} {text!r} is not a number; expected {expected}") from None
+
+
+def camera_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The camera fields of :class:`~so101sim.recording.VideoSettings` from the options of
+    :func:`add_camera_options` (their ranges are checked by ``VideoSettings.validated``).
+
+    Raises:
+        RecordingError: a number that is not one, or --lookat that is not three numbers.
+    """
+    units = {"azimuth": "degrees", "elevation": "degrees from -90 to 90", "distance": "metres"}
+    options: dict[str, Any] = {"view": args.view}
+    for name in CAMERA_NUMBERS:
+        if (text := getattr(args, name)) is not None:
+            options[name] = _number(text, name, f"a number of {units[name]}")
+    if args.lookat is not None:
+        parts = args.lookat.split(",")
+        expected = "three numbers X,Y,Z in metres, e.g. --lookat 0.2,0,0.1"
+        if len(parts) != 3:
+            raise RecordingError(f"--lookat {args.lookat!r} is invalid; expected {expected}")
+        options["lookat"] = tuple(_number(p.strip(), "lookat", expected) for p in parts)
+    return options
 
 
 def add_commands(
@@ -68,20 +152,14 @@ def split_script_args(argv: list[str]) -> tuple[list[str], list[str] | None]:
 
 def cmd_record(args: argparse.Namespace) -> int:
     from .handin import run_script  # imported here: it imports MuJoCo
+    from .recording import VideoSettings
 
     script_args = list(args.script_args)
-    options = {
-        "title": args.title,
-        "width": args.width,
-        "height": args.height,
-        "fps": args.fps,
-        "camera": args.camera,
-        "quality": args.quality,
-        "caption": args.caption,
-        "plot": args.plot,
-        "log": args.log,
-        "force": args.force,
-    }
+    video = {name: getattr(args, name) for name in ("width", "height", "fps", "camera")}
+    video |= {"quality": args.quality, "caption": args.caption, "title": args.title}
+    video |= camera_options(args)
+    VideoSettings(**video).validated()  # a bad setting stops before the script runs
+    options = {**video, "plot": args.plot, "log": args.log, "force": args.force}
     try:
         run = run_script(args.script, script_args, args.output, **options)
     except Exception as exc:

@@ -151,6 +151,11 @@ def record(
     plot: PathArg = None,
     log: PathArg = None,
     force: bool = False,
+    view: str = "default",
+    azimuth: float | None = None,
+    elevation: float | None = None,
+    distance: float | None = None,
+    lookat: tuple[float, float, float] | None = None,
 ) -> RecordingViewer:
     """Record the run of ``(m, d)`` to ``video`` (MP4), optionally a ``plot`` and a ``log``:
     use the result where the script used ``mujoco.viewer.launch_passive(m, d)``::
@@ -158,11 +163,15 @@ def record(
         with so101sim.record(m, d, "lab.mp4", title="Lab 2 - Ada Lovelace") as viewer:
             move_to_pose(m, d, viewer, desired, 2.0)
 
-    Every setting and path is checked before anything runs (the errors say what to use).
+    The free camera is fitted to the motion, seen from ``view`` ("default", "front", "side",
+    "top") or ``azimuth``/``elevation`` (degrees); ``distance`` (m) and ``lookat`` (x, y, z in m)
+    override the fitted ones. Every setting and path is checked before anything runs (the
+    errors say what to use).
     """
     settings = VideoSettings(
-        width=width, height=height, fps=fps, camera=camera, quality=quality, caption=caption
-    )
+        width=width, height=height, fps=fps, camera=camera, quality=quality, caption=caption,
+        view=view, azimuth=azimuth, elevation=elevation, distance=distance, lookat=lookat,
+    )  # fmt: skip
     if title is not None:
         settings = _with_title(settings, title)
     return RecordingViewer(m, d, video, plot=plot, log=log, settings=settings, force=force)

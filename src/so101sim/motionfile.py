@@ -388,11 +388,11 @@ def load_motion(path: str | Path, *, units: ArmUnits | None = None) -> MotionFil
     p = Path(path)
     try:
         text = read_text_limited(p, MAX_FILE_BYTES)
+        if "\0" in text:  # valid UTF-8 but binary data (NUL bytes are never in TOML)
+            raise UnreadableFileError("it holds NUL bytes (binary data)")
     except UnreadableFileError as exc:
-        reason = "no such file" if exc.missing else f"cannot read the file: {exc}"
-        raise MotionFileError(
-            str(p), 0, f"{reason}; expected a TOML motion file (see `so101sim run --help`)"
-        ) from None
+        reason = "no such file" if exc.missing else f"not a motion file: {exc}"
+        raise MotionFileError(str(p), 0, f"{reason}; expected a TOML motion file (text)") from None
     return parse_motion(text, path=str(p), units=units)
 
 

@@ -8,14 +8,16 @@ moved by more than a small threshold since the last pose reported and then stays
 few reads, :class:`PoseWatcher` reports it, and the command prints it ready to paste as a
 Python dict and as a TOML pose for a motion file.
 
-The library never prints: :func:`watch_poses` yields :class:`PoseChange` objects and
-:func:`format_python` / :func:`format_toml` return text.
+:func:`open_pose_viewer` opens that viewer (its error without a display is true for a script
+as for the command). The library never prints: :func:`watch_poses` yields
+:class:`PoseChange` objects and :func:`format_python` / :func:`format_toml` return text.
 """
 
 from __future__ import annotations
 
 import copy
 from collections.abc import Iterator
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -23,7 +25,8 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from .errors import ModelError
+from . import viewer as _viewer
+from .errors import ModelError, ViewerError
 from .kinematics import TipPose, for_model
 from .model import arm_index, arm_units, load_model
 from .simulation import Pacer, measured_radians
@@ -102,6 +105,24 @@ def pose_scene(
     d.qpos[arm_index(m).qpos] = units.to_radians(units.pose_to_array(start))
     mujoco.mj_forward(m, d)
     return m, d
+
+
+NO_DISPLAY_MESSAGE = (
+    "the pose finder shows a window to pose the arm in, and there is no display here "
+    "(DISPLAY is not set): run it on a desktop, or on one reached remotely (ssh -X, VNC)"
+)
+
+
+def open_pose_viewer(m: mujoco.MjModel, d: mujoco.MjData) -> AbstractContextManager[Any]:
+    """Open the viewer with its joint sliders on the pose scene (a context manager).
+
+    Raises:
+        ViewerError: there is no display (the window is the pose finder's whole point, so
+            there is no headless way), or the viewer cannot be opened.
+    """
+    if not _viewer.has_display():
+        raise ViewerError(NO_DISPLAY_MESSAGE)
+    return _viewer.open_viewer(m, d, show_ui=True)
 
 
 def watch_poses(

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -133,6 +133,18 @@ class SO101SimFollowerConfig:
     """Lockstep mode: simulated seconds each ``get_observation`` advances."""
     gripper_torque_fraction: float = GRIPPER_TORQUE_FRACTION
     """Share of the gripper actuator's force range the gripper may use (0 < f <= 1)."""
+
+    def __new__(cls, *args: Any, **kwargs: Any) -> SO101SimFollowerConfig:
+        # Before the dataclass's __init__, so a field it lacks (a real arm's ``port``) is a
+        # RobotConfigError naming the fields, not a bare TypeError.
+        names = [f.name for f in fields(cls) if f.init]
+        unknown = [key for key in kwargs if key not in names]
+        if args or unknown:
+            what = f"has no field {unknown[0]!r}" if unknown else "takes keyword arguments only"
+            if "port" in unknown:
+                what += " (the simulated arm has no serial port: leave it out)"
+            raise RobotConfigError(f"{cls.__name__} {what}; its fields are {', '.join(names)}")
+        return super().__new__(cls)
 
     def __post_init__(self) -> None:
         if self.use_degrees is not True:

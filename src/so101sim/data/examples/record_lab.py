@@ -1,12 +1,13 @@
 """Record the lab's motion for the hand-in: a video, a plot and a CSV log, no screen recorder.
 
-python examples/record_lab.py            # writes lab.mp4, lab.png and lab.csv here
+python examples/record_lab.py            # writes record_lab.mp4, .png and .csv here
 """
 
 from so101sim import STARTING_POSE, ZERO_POSE, Recorder, Simulation
 
 sim = Simulation()  # the arm in its folded rest pose
-with Recorder(sim, video="lab.mp4", plot="lab.png", log="lab.csv", force=True) as rec:
+outputs = {"video": "record_lab.mp4", "plot": "record_lab.png", "log": "record_lab.csv"}
+with Recorder(sim, **outputs, force=True) as rec:
     sim.move_to(ZERO_POSE, 2.0, phase="to_zero")
     sim.hold(2.0, phase="hold")
     result = sim.move_to(STARTING_POSE, 2.0, phase="return")
