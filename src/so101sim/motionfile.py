@@ -85,7 +85,13 @@ from .motionfile_lines import (
     load_toml,
     read_text_limited,
 )
-from .motionfile_tip import TipPlanner, TipTarget, check_tip_value, is_tip_move
+from .motionfile_tip import (
+    TipPlanner,
+    TipTarget,
+    check_tip_value,
+    is_tip_move,
+    unreachable_reason,
+)
 from .profiles import MAX_MOVE_DURATION_S
 from .units import (
     DEG_PER_RAD,
@@ -387,7 +393,7 @@ class _Loader:
         try:
             return move, self.planner.end(move, current)
         except UnreachableError as exc:
-            raise self.fail((*where, "tip"), f"the tip cannot get there: {exc}") from None
+            raise self.fail((*where, "tip"), unreachable_reason(exc)) from None
         except SettingError as exc:  # a profile a straight line cannot follow
             raise self.fail((*where[:-1], "profile"), str(exc)) from None
 

@@ -26,7 +26,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from .errors import JointNameError, SettingError
+from .errors import JointNameError, SettingError, UnreachableError
 from .model import load_model
 from .motion import Move
 from .profiles import Profile
@@ -124,6 +124,13 @@ def _key_problem(key: str) -> str:
     )
 
 
+def unreachable_reason(exc: UnreachableError) -> str:
+    """An unreachable tip's message as said about a motion file: the API's advice
+    (``closest=True``) has no counterpart in a file, and ``path`` is written as TOML."""
+    text = str(exc).replace(", or pass closest=True to get the closest reachable pose", "")
+    return "the tip cannot get there: " + text.replace("path='joint'", 'path = "joint"')
+
+
 class TipPlanner:
     """Plans tip moves on a scratch :class:`~so101sim.simulation.Simulation` (planning only,
     never stepped), the way :func:`~so101sim.motion.run_segments` will: the model is loaded on
@@ -165,4 +172,5 @@ __all__ = [
     "check_tip",
     "check_tip_value",
     "is_tip_move",
+    "unreachable_reason",
 ]
