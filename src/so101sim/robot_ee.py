@@ -135,6 +135,14 @@ def _target(now: TipPose, tip: Sequence[float] | None, delta: Sequence[float] | 
     return xyz if tip is not None else now.position + xyz
 
 
+def _step_bounds(max_step_m: object, max_angle_step_deg: object) -> tuple[float, float]:
+    """The step bounds, checked: metres in (0, 0.1], degrees in (0, 180]."""
+    return (
+        check_positive(max_step_m, "max_step_m", maximum=0.1, unit=" m"),
+        check_positive(max_angle_step_deg, "max_angle_step_deg", maximum=180.0, unit="°"),
+    )
+
+
 def ee_action(
     source: Mapping[str, Any] | Any,
     *,
@@ -170,8 +178,7 @@ def ee_action(
         UnreachableError: the step's target is out of reach (unless ``clip``).
         SettingError, JointNameError, JointValueError: bad numbers or keys.
     """
-    step_m = check_positive(max_step_m, "max_step_m", maximum=0.1, unit=" m")
-    step_deg = check_positive(max_angle_step_deg, "max_angle_step_deg", maximum=180.0, unit="°")
+    step_m, step_deg = _step_bounds(max_step_m, max_angle_step_deg)
     asked = {k: v for k, v in (("pitch", pitch), ("roll", roll)) if v is not None}
     angles = {k: check_range(v, k, low=-180.0, high=180.0, unit="°") for k, v in asked.items()}
     m = _model_of(source, model)
@@ -196,6 +203,7 @@ def ee_action(
     return action
 
 
+@dataclass
 class EndEffectorController:
     """Drives a robot (``get_observation``/``send_action``, e.g. :class:`SO101SimFollower`)
     by its tip: each :meth:`send` reads the arm, computes :func:`ee_action` with this
@@ -208,20 +216,15 @@ class EndEffectorController:
             ee.send(tip=(0.20, 0.0, 0.05), pitch=-90)
     """
 
-    def __init__(
-        self,
-        robot: Any,
-        *,
-        max_step_m: float = MAX_STEP_M,
-        max_angle_step_deg: float = MAX_ANGLE_STEP_DEG,
-        clip: bool = False,
-    ) -> None:
-        self.robot = robot
-        self.max_step_m = check_positive(max_step_m, "max_step_m", maximum=0.1, unit=" m")
-        self.max_angle_step_deg = check_positive(
-            max_angle_step_deg, "max_angle_step_deg", maximum=180.0, unit="°"
+    robot: Any
+    max_step_m: float = MAX_STEP_M
+    max_angle_step_deg: float = MAX_ANGLE_STEP_DEG
+    clip: bool = False
+
+    def __post_init__(self) -> None:
+        self.max_step_m, self.max_angle_step_deg = _step_bounds(
+            self.max_step_m, self.max_angle_step_deg
         )
-        self.clip = clip
 
     def tip(self) -> TipPose:
         """Where the robot's tip is now (from one observation)."""
