@@ -11,6 +11,8 @@ from contextlib import contextmanager
 import mujoco
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from so101sim import cli, lab
 from so101sim.errors import MotionFileError, So101SimError
@@ -454,3 +456,144 @@ def _alarm(seconds: int):
     finally:
         signal.alarm(0)
         signal.signal(signal.SIGALRM, old)
+
+
+# ---------------------------------------------------------------------------- tip moves
+TIP = """\
+profile = "minimum_jerk"
+
+[[steps]]
+move = { tip = [0.20, 0.0, 0.05], pitch = -90 }
+duration = 1
+
+[[steps]]
+gripper = 50
+duration = 0.5
+
+[[steps]]
+name = "forward"
+move = { tip = [0.25, 0.0, 0.05], pitch = -90, roll = 10, path = "joint" }
+duration = 1
+profile = "limited"
+"""
+
+
+def test_a_tip_move_loads_as_a_tip_move_and_the_next_steps_continue_from_its_end():
+    mf = _parse(TIP)
+    first, grip, forward = mf.steps
+    assert first == Move.to_tip((0.2, 0.0, 0.05), 1.0, pitch=-90.0, profile="minimum_jerk",
+                                phase="to_tip")  # fmt: skip
+    assert first.path == "line" and first.roll is None
+    assert forward == Move.to_tip((0.25, 0.0, 0.05), 1.0, pitch=-90.0, roll=10.0, path="joint",
+                                  profile="limited", phase="forward")  # fmt: skip
+    assert mf.lines == (3, 7, 11)
+    # the gripper step keeps the pose the line really ends on, as the run will command it
+    sim = Simulation(initial_pose=mf.start)
+    _, targets = sim.plan_tip_move(first.tip, 1.0, pitch=-90, profile="minimum_jerk")
+    end = sim.units.array_to_pose(targets[-1])
+    assert grip.target == {**end, "gripper": 50.0}
+
+
+def test_a_tip_motion_file_runs_and_ends_with_the_tip_there():
+    mf = _parse(TIP)
+    sim = Simulation(initial_pose=mf.start)
+    result = run_motion(sim.model, sim.data, mf.steps)
+    assert result.completed and result.end_time == pytest.approx(2.5)
+    sim.hold(0.5)  # settle
+    tip = sim.tip()
+    assert np.linalg.norm(tip.position - (0.25, 0.0, 0.05)) < 2e-3
+    assert tip.pitch == pytest.approx(-90, abs=1) and tip.roll == pytest.approx(10, abs=1)
+
+
+MOVE = "[[steps]]\nduration = 1\nmove = "
+
+
+@pytest.mark.parametrize(
+    ("move", "line", "reason"),
+    [
+        ("{ tip = 0.2 }", 5, "tip = 0.2 is not three numbers"),
+        ("{ tip = [0.2, 0.0] }", 5, "a list of 2 is not three numbers"),
+        ("{ tip = [0.2, 'x', 0.05] }", 5, "tip y = 'x' is not a number"),
+        ("{ tip = [0.2, 0.0, nan] }", 5, "tip z = nan m is not finite"),
+        ("{ tip = [2.5, 0.0, 0.05] }", 5, "each within ±2 m"),
+        ("{ tip = [0.2, 0.0, -1e400] }", 5, "not finite"),
+        ("{ tip = [0.2, 0.0, 0.05], pitch = 'down' }", 5, "pitch = 'down' is not a number"),
+        ("{ tip = [0.2, 0.0, 0.05], roll = 200 }", 5, "roll = 200.0° is invalid"),
+        ("{ tip = [0.2, 0.0, 0.05], pitch = true }", 5, "not a number"),
+        ("{ tip = [0.2, 0.0, 0.05], path = 'curve' }", 5, "unknown path 'curve'"),
+        ("{ tip = [0.2, 0.0, 0.05], elbow_flex = 3 }", 5, "both a tip and a pose"),
+        ("{ tip = [0.2, 0.0, 0.05], duration = 3 }", 5, "keys of the step"),
+        ("{ tip = [0.2, 0.0, 0.05], speed = 3 }", 5, "unknown key 'speed' in a tip move"),
+        ("{ tip = [0.6, 0.0, 0.05] }", 5, "the tip cannot get there"),
+        ("{ tip = [0.2, 0.0, 0.3], pitch = -90, path = 'joint' }", 5, "out of reach"),
+    ],
+)
+def test_every_tip_move_error_names_file_line_and_reason(move, line, reason):
+    err = _error("[[steps]]\nhold = 1\n" + MOVE + move + "\n")
+    assert err.line == line, str(err)
+    assert reason in err.reason, err.reason
+    assert str(err).startswith(f"m.toml:{line}: ")
+    assert "closest=True" not in err.reason  # the API's advice, meaningless in a file
+
+
+def test_tip_move_errors_point_at_the_key_in_a_multi_line_table():
+    table = "[[steps]]\nduration = 1\n[steps.move]\ntip = [0.2, 0.0, 0.05]\n"
+    err = _error(table + "pitch = -900\n")
+    assert err.line == 5 and "pitch = -900.0° is invalid" in err.reason
+    err = _error(table + "shoulder_pan = 0\n")
+    assert err.line == 5 and "both a tip and a pose" in err.reason
+    err = _error(table.replace("0.05]", "0.05, 0.1]"))
+    assert err.line == 4 and "a list of 4" in err.reason
+
+
+def test_a_line_through_no_reach_or_with_the_limited_profile_is_refused_at_load():
+    # the end is reachable, but not the straight line from rest to it (it passes too high)
+    err = _error(f"{MOVE}{{ tip = [0.05, 0.0, 0.20], pitch = -90 }}\n")
+    assert err.line == 3 and "the tip cannot get there" in err.reason
+    err = _error(f"{MOVE}{{ tip = [0.2, 0.0, 0.05] }}\nprofile = 'limited'\n")
+    assert err.line == 4 and "cannot drive a straight-line tip move" in err.reason
+    # the same point in joint space with the limited profile is fine
+    mf = _parse(f"{MOVE}{{ tip = [0.2, 0.0, 0.05], path = 'joint' }}\nprofile = 'limited'\n")
+    assert mf.steps[0].path == "joint"
+
+
+def test_the_tip_square_example_is_checked_and_stays_on_its_lines():
+    from pathlib import Path
+
+    from so101sim.preflight import check_motion_file
+
+    path = Path(__file__).resolve().parent.parent / "examples" / "tip_square.toml"
+    mf = load_motion(path)
+    sides = [s for s in mf.steps if isinstance(s, Move) and s.tip is not None and s.path == "line"]
+    assert len(sides) == 4
+    report = check_motion_file(path)
+    assert report.passed, report.failures
+    deviations = [s.line_deviation_mm for s in report.steps if s.line_deviation_mm is not None]
+    assert len(deviations) == 4
+    assert all(commanded <= 2.0 and measured <= 2.0 for commanded, measured in deviations)
+
+
+TIP_VALUES = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True)
+    .map(repr)
+    .map(lambda r: {"inf": "inf", "-inf": "-inf", "nan": "nan"}.get(r, r)),
+    st.integers(-(10**30), 10**30).map(str),
+    st.sampled_from(["'line'", "'joint'", "'x'", "true", "[]", "[0.2, 0, 0.05]", "[1, 2, 3, 4]"]),
+)
+
+
+@settings(max_examples=100, deadline=None, database=None)
+@given(
+    st.dictionaries(st.sampled_from(["pitch", "roll", "path", "elbow_flex", "name"]), TIP_VALUES),
+    st.lists(TIP_VALUES, max_size=4),
+    st.sampled_from(["linear", "limited"]),
+)
+def test_any_tip_table_loads_or_raises_motion_file_error(keys, tip, profile):
+    body = ", ".join([f"tip = [{', '.join(tip)}]", *(f"{k} = {v}" for k, v in keys.items())])
+    text = f"[[steps]]\nduration = 0.1\nprofile = '{profile}'\nmove = {{ {body} }}\n"
+    try:
+        mf = parse_motion(text, path="f.toml")
+    except MotionFileError as exc:
+        assert 1 <= exc.line <= 4 and len(str(exc)) < 1000
+    else:
+        assert mf.steps[0].tip is not None

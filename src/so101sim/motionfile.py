@@ -26,6 +26,10 @@ A motion file names poses in the arm's units and lists steps::
     gripper = 60                 # open the gripper to 60 over 0.5 s
     duration = 0.5
 
+    [[steps]]                    # move the gripper's tip to (x, y, z) metres, base frame
+    move = { tip = [0.20, 0.0, 0.05], pitch = -90, roll = 0, path = "line" }
+    duration = 2.0               # pitch, roll (degrees) and path ("line" | "joint") optional
+
 Two poses are built in: ``rest`` (the folded rest pose, :data:`~so101sim.units.STARTING_POSE`)
 and ``zero`` (every joint at 0); a file may not redefine them. A pose may name only some
 joints: a move to it changes those joints and keeps the others at their last target. The
@@ -43,7 +47,12 @@ only (not a device such as ``/dev/zero`` or a pipe), and refuses data nested mor
 levels deep before :mod:`tomllib` sees it. Joint values are checked by the units module as the
 API checks them: a value within :data:`~so101sim.units.LIMIT_TOLERANCE` past a limit is
 clipped onto it; durations and profile names by :mod:`so101sim.validation`. Line numbers and
-the bounded reading come from :mod:`so101sim.motionfile_lines`.
+the bounded reading come from :mod:`so101sim.motionfile_lines`. Tip moves are checked and
+planned (in full, from the target before them: an unreachable point is an error with its line)
+by :mod:`so101sim.motionfile_tip`.
+
+(Over 400 lines: the loader is one class whose parts share the file's line lookup; the reading,
+the line scan and the tip moves are in the two modules named above.)
 """
 
 from __future__ import annotations
@@ -56,6 +65,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import mujoco
 import numpy as np
 
 from .errors import (
@@ -64,8 +74,9 @@ from .errors import (
     JointValueError,
     MotionFileError,
     SettingError,
+    UnreachableError,
 )
-from .model import default_units
+from .model import arm_units, default_units
 from .motion import PROFILES, Hold, Move, Segment
 from .motionfile_lines import (
     MAX_FILE_BYTES,
@@ -73,6 +84,13 @@ from .motionfile_lines import (
     UnreadableFileError,
     load_toml,
     read_text_limited,
+)
+from .motionfile_tip import (
+    TipPlanner,
+    TipTarget,
+    check_tip_value,
+    is_tip_move,
+    unreachable_reason,
 )
 from .profiles import MAX_MOVE_DURATION_S
 from .units import (
@@ -159,9 +177,12 @@ class _Loader:
     :class:`MotionFileError` at the line of the key they came from.
     """
 
-    def __init__(self, loc: KeyLines, path: str, units: ArmUnits) -> None:
+    def __init__(
+        self, loc: KeyLines, path: str, units: ArmUnits, model: mujoco.MjModel | None = None
+    ) -> None:
         self.path = path
         self.units = units
+        self.planner = TipPlanner(model)  # tip moves, planned as the run will plan them
         self.loc = loc
         self.radians = False  # body joints given in radians (units = "rad")
         lo, hi = units.limits
@@ -326,6 +347,8 @@ class _Loader:
         what = f"step {i + 1} duration"
         d = self.duration(raw["duration"], (*where, "duration"), what, MAX_MOVE_DURATION_S)
         profile = self.profile(raw.get("profile", self.default_profile), (*where, "profile"))
+        if kind == "move" and is_tip_move(raw["move"]):
+            return self.tip_move(raw["move"], where, d, profile, name or "to_tip", current)
         target, label = self.target(kind, raw[kind], current, (*where, kind))
         pose = self.units.array_to_pose(target)
         return Move(pose, d, profile=profile, phase=name or label), target
@@ -350,6 +373,30 @@ class _Loader:
             raise self.fail((*where, "name"), f"name must be a string, got {_show(name)}")
         return name
 
+    def tip_move(
+        self,
+        value: Mapping[str, Any],
+        where: Where,
+        duration: float,
+        profile: str,
+        phase: str,
+        current: np.ndarray,
+    ) -> tuple[Move, np.ndarray]:
+        """A tip move (:mod:`so101sim.motionfile_tip`) and the target it ends on, planned in
+        full from ``current`` so that a point out of reach is reported here, with its line."""
+        where = (*where, "move")
+        checked = {}
+        for key, raw in value.items():
+            with self.reasons((*where, key)):
+                checked[key] = check_tip_value(key, raw)
+        move = TipTarget(**checked).move(duration, profile, phase)
+        try:
+            return move, self.planner.end(move, current)
+        except UnreachableError as exc:
+            raise self.fail((*where, "tip"), unreachable_reason(exc)) from None
+        except SettingError as exc:  # a profile a straight line cannot follow
+            raise self.fail((*where[:-1], "profile"), str(exc)) from None
+
     def target(
         self, kind: str, value: Any, current: np.ndarray, where: Where
     ) -> tuple[np.ndarray, str]:
@@ -364,17 +411,26 @@ class _Loader:
         return self.units.pose_to_array(pose, base=current, check_limits=False), label
 
 
-def parse_motion(text: str, *, path: str = "<string>", units: ArmUnits | None = None) -> MotionFile:
+def parse_motion(
+    text: str,
+    *,
+    path: str = "<string>",
+    units: ArmUnits | None = None,
+    model: mujoco.MjModel | None = None,
+) -> MotionFile:
     """Read a motion from TOML text; ``path`` is only used in error messages.
 
-    ``units`` gives the joint limits to check against (default: the shipped model's).
+    ``units`` gives the joint limits to check against (default: ``model``'s, else the shipped
+    model's); ``model`` plans the tip moves (default: the shipped model, loaded on the first).
 
     Raises:
         MotionFileError: the text is not valid TOML, is too large (over 1 MiB) or nests too
             deep, or says something invalid (with the line).
     """
     data, loc = load_toml(text, path)
-    return _Loader(loc, path, units if units is not None else default_units()).load(data)
+    if units is None:
+        units = arm_units(model) if model is not None else default_units()
+    return _Loader(loc, path, units, model).load(data)
 
 
 def load_motion(path: str | Path, *, units: ArmUnits | None = None) -> MotionFile:
