@@ -176,7 +176,7 @@ def test_a_rate_of_no_whole_number_of_physics_steps_keeps_its_clock():
     ideal = np.arange(1, 91) / 30
     assert np.abs(np.array(times) - ideal).max() <= 0.001 + 1e-9  # half a physics step
     assert times[-1] == pytest.approx(3.0)  # no drift
-    assert env.metadata["render_fps"] == 30
+    assert env.metadata["render_fps"] == 30 and isinstance(env.metadata["render_fps"], int)
 
 
 def test_bad_settings_and_actions_are_refused_with_what_to_use():

@@ -144,7 +144,9 @@ class So101TaskEnv(gym.Env):
         self.control_hz = hz
         self.max_episode_steps = max(1, round(seconds * hz))
         self._max_episode_steps = self.max_episode_steps  # where LeRobot's eval looks for it
-        self.metadata = {**self.metadata, "render_fps": hz}
+        # a whole rate as an int: LeRobot's video writer (PyAV) refuses a float frame rate
+        fps = int(hz) if float(hz).is_integer() else hz
+        self.metadata = {**self.metadata, "render_fps": fps}
         self.actions = ActionMap(
             self.model, self.sim.units, ControlSettings(control, max_delta, ee_step, ee_turn)
         )
