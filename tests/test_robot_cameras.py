@@ -21,6 +21,7 @@ from so101sim.recording import frames
 from so101sim.robot import SO101SimFollower, SO101SimFollowerConfig
 from so101sim.robot_cameras import CAMERA_KEYS, parse_cameras, scene_model
 from so101sim.scenes import PRESET_CAMERAS, camera, camera_names
+from so101sim.units import JOINT_NAMES
 
 SMALL = {"front": {"width": 64, "height": 48}, "wrist": {"width": 32, "height": 32}}
 
@@ -184,3 +185,37 @@ def test_importing_so101sim_main_runs_no_cli(monkeypatch, capsys):
     sys.modules.pop("so101sim.__main__", None)
     module = importlib.import_module("so101sim.__main__")
     assert callable(module.main) and capsys.readouterr().out == ""
+
+
+def test_a_scene_preset_puts_its_objects_in_the_followers_model():
+    import mujoco
+
+    from so101sim.scenes import object_pose
+
+    robot = lockstep(scene="cube_to_bowl", cameras={"front": {"width": 64, "height": 48}})
+    model = robot._sim.model
+    assert mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "cube") >= 0
+    assert mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "bowl") >= 0
+    with robot:
+        start = object_pose(model, robot._sim.data, "cube").copy()
+        for _ in range(25):  # 0.5 s of simulated time: the cube rests on the table
+            robot.send_action({f"{j}.pos": v for j, v in robot._sim.pose().items()})
+            obs = robot.get_observation()
+        end = object_pose(model, robot._sim.data, "cube")
+    assert obs["front"].shape == (48, 64, 3)
+    np.testing.assert_allclose(end[:3], start[:3], atol=1e-3)
+    assert set(k for k in obs if k.endswith(".pos")) == {f"{j}.pos" for j in JOINT_NAMES}
+
+
+def test_without_a_scene_the_follower_has_the_plain_arm():
+    from so101sim.model import load_model
+
+    plain = SO101SimFollower(SO101SimFollowerConfig())._sim.model
+    shipped = load_model()
+    assert (plain.nbody, plain.ngeom, plain.njnt) == (shipped.nbody, shipped.ngeom, 6)
+    assert plain.opt.cone == shipped.opt.cone and plain.opt.impratio == shipped.opt.impratio
+
+
+def test_an_unknown_scene_is_refused_listing_the_presets():
+    with pytest.raises(RobotConfigError, match=r"unknown scene 'stack'.*pick_cube, cube_to_bowl"):
+        SO101SimFollowerConfig(scene="stack")

@@ -308,6 +308,9 @@ def build_parser() -> argparse.ArgumentParser:
     summary = "mirror a LeRobot SO-101 leader arm on the sim in real time (Ctrl-C stops)"
     _add_teleop_options(_command(sub, "teleop", cmd_teleop, summary, model, headless))
     add_commands(sub, recording=recording, model=model)
+    from .cli_demo import add_demo_command  # so101sim demo (cli_demo.py)
+
+    add_demo_command(sub)
     return parser
 
 

@@ -124,8 +124,8 @@ class SO101SimFollower:
         pose = dict(STARTING_POSE)
         pose.update(parse_pose(self.config.initial_pose, partial=True))
         # A private model (configure() changes the gripper's force range on it), with the
-        # config's cameras added to the scene; the rig renders them (so101sim.robot_cameras).
-        model = scene_model(self.config.cameras, self.config.model)
+        # config's cameras and scene preset added; the rig renders them (robot_cameras).
+        model = scene_model(self.config.cameras, self.config.model, self.config.scene)
         self._sim = Simulation(model, initial_pose=pose)
         self._rig = CameraRig(self._sim, self.config.cameras)
         self._gripper = int(self._sim.index.actuator[GRIPPER_INDEX])

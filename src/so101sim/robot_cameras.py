@@ -38,7 +38,7 @@ import numpy as np
 from .errors import CameraError, DeviceNotConnectedError, SettingError
 from .model import load_model
 from .recording.settings import QUALITY_CHOICES, VideoSettings
-from .scenes import PRESET_CAMERAS, CameraSpec, build_model, camera
+from .scenes import PRESET_CAMERAS, CameraSpec, build_model, camera, preset_scene
 from .simulation import Simulation
 
 CAMERA_KEYS: tuple[str, ...] = (
@@ -135,11 +135,17 @@ def _checked(cam: RobotCameraSpec) -> RobotCameraSpec:
     return cam
 
 
-def scene_model(cameras: Mapping[str, Any] | None, model: str | Path | None) -> mujoco.MjModel:
+def scene_model(
+    cameras: Mapping[str, Any] | None, model: str | Path | None, scene: str | None = None
+) -> mujoco.MjModel:
     """A follower's own physics model: ``model`` (the shipped scene by default) with its
-    cameras added, compiled anew; without cameras, a private copy of the loaded model (the
-    follower changes the gripper's force range on it)."""
+    cameras and the table and objects of the ``scene`` preset (see
+    :data:`so101sim.scenes.SCENE_PRESETS`) added, compiled anew; without cameras or a scene,
+    a private copy of the loaded model (the follower changes the gripper's force range on
+    it)."""
     cams = parse_cameras(cameras)
+    if scene is not None:
+        return build_model([c.spec for c in cams.values()], model, scene=preset_scene(scene))
     if cams:
         return build_model([c.spec for c in cams.values()], model)
     return copy.copy(load_model(model))

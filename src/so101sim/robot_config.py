@@ -17,6 +17,7 @@ import numpy as np
 
 from .errors import CameraError, JointNameError, RobotConfigError, So101SimError
 from .robot_cameras import parse_cameras
+from .scenes import SCENE_PRESETS
 from .stepping import MAX_SPEED, MIN_SPEED
 from .units import JOINT_NAMES, STARTING_POSE, normalize_joint_name, parse_pose
 from .validation import (
@@ -111,6 +112,10 @@ class SO101SimFollowerConfig:
     ``get_observation()`` under the camera's name: see :mod:`so101sim.robot_cameras`."""
     model: str | Path | None = None
     """MJCF file to load instead of the shipped ``scene.xml``."""
+    scene: str | None = None
+    """A table-top scene preset of :mod:`so101sim.scenes` (``"pick_cube"``,
+    ``"cube_to_bowl"``): its table and objects (at their nominal poses) are added to the
+    follower's model. None: the arm alone, as the shipped scene has it."""
     viewer: bool = False
     """Open MuJoCo's passive viewer at ``connect()`` (needs a display)."""
     viewer_quality: str = "auto"
@@ -158,6 +163,8 @@ class SO101SimFollowerConfig:
         except CameraError as exc:
             raise RobotConfigError(f"cameras: {exc}") from None
         check_choice(self.mode, "mode", MODES, error=RobotConfigError)
+        if self.scene is not None:
+            check_choice(self.scene, "scene", SCENE_PRESETS, error=RobotConfigError)
         check_choice(
             self.viewer_quality, "viewer_quality", VIEWER_QUALITIES, error=RobotConfigError
         )

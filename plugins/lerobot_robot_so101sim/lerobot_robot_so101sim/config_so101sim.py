@@ -95,6 +95,9 @@ class SO101SimConfig(RobotConfig):
     speed: float = 1.0
     viewer: bool = False
     model: str | None = None
+    scene: str | None = None
+    """A table-top scene preset (``pick_cube``, ``cube_to_bowl``): its table and objects are
+    added to the simulated arm's scene. None: the arm alone."""
     initial_pose: dict[str, float] = field(default_factory=lambda: dict(STARTING_POSE))
     gripper_torque_fraction: float = 0.5
 
@@ -123,6 +126,7 @@ class SO101SimConfig(RobotConfig):
             use_degrees=self.use_degrees,
             cameras={n: c.sim_settings() for n, c in self.cameras.items()},  # type: ignore[attr-defined]
             model=self.model,
+            scene=self.scene,
             viewer=self.viewer,
             mode=self.mode,
             initial_pose=dict(self.initial_pose),

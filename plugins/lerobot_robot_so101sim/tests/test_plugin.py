@@ -109,6 +109,18 @@ def test_bad_config_fails_when_made_naming_the_field():
     assert "camera 'front' width" in str(info.value.__cause__)
 
 
+def test_robot_scene_puts_the_presets_objects_in_the_robots_scene():
+    import mujoco
+
+    robot = make_robot_from_config(parse_robot("type=so101_sim", "scene=pick_cube"))
+    model = robot.follower._sim.model
+    assert mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "cube") >= 0
+    with pytest.raises(draccus.utils.ParsingError) as info:
+        parse_robot("type=so101_sim", "scene=stack")
+    assert isinstance(info.value.__cause__, sim_errors.RobotConfigError)
+    assert "pick_cube, cube_to_bowl" in str(info.value.__cause__)
+
+
 # ---------------------------------------------------------------------------- actions
 def test_actions_accept_0d_tensors_and_numpy_scalars_and_ignore_other_keys():
     with lockstep() as robot:

@@ -21,7 +21,16 @@ import gymnasium as gym
 from .actions import CONTROL_MODES, ActionMap, ControlSettings
 from .base import REWARD_MODES, Evaluation, So101TaskEnv
 from .expert import CubeToBowlExpert, PickCubeExpert, ScriptedExpert, expert_for
-from .run import TASKS, EpisodeResult, ExpertScore, env_id, evaluate_expert, make, run_expert
+from .run import (
+    TASKS,
+    EpisodeResult,
+    ExpertScore,
+    env_id,
+    evaluate_expert,
+    make,
+    run_episode,
+    run_expert,
+)
 from .tasks import LIFT_SUCCESS_M, CubeToBowlEnv, PickCubeEnv
 
 ENTRY_POINTS = {
@@ -61,5 +70,6 @@ __all__ = [
     "expert_for",
     "make",
     "register_envs",
+    "run_episode",
     "run_expert",
 ]

@@ -13,7 +13,9 @@ keys as noted):
   (``observation.images.<camera>``).
 
 Every ``1 / control_hz`` s the action sets the six position targets (see
-:mod:`so101sim.envs.actions`) and the physics takes that many 2 ms steps. An episode ends
+:mod:`so101sim.envs.actions`) and the physics takes that many 2 ms steps (at a rate that is
+not a whole number of steps, such as LeRobot's 30 Hz, 16 or 17 steps: step ``k`` ends at the
+physics step nearest ``k / control_hz``, with no drift). An episode ends
 when the task succeeds (``terminated``, unless ``terminate_on_success`` is off) or after
 ``episode_seconds`` (``truncated``); ``info["is_success"]`` says whether it succeeded.
 """
@@ -137,11 +139,14 @@ class So101TaskEnv(gym.Env):
         self.model = build_scene(self.scene)
         limit_gripper(self.model, fraction)
         self.sim = Simulation(self.model, initial_pose=initial_pose or STARTING_POSE)
-        self.substeps = _substeps(hz, self.sim.timestep)
+        self._period_steps = 1.0 / (hz * self.sim.timestep)  # physics steps per env step
+        self.substeps = max(1, round(self._period_steps))  # nominal (exact at 25 Hz)
         self.control_hz = hz
         self.max_episode_steps = max(1, round(seconds * hz))
         self._max_episode_steps = self.max_episode_steps  # where LeRobot's eval looks for it
-        self.metadata = {**self.metadata, "render_fps": hz}
+        # a whole rate as an int: LeRobot's video writer (PyAV) refuses a float frame rate
+        fps = int(hz) if float(hz).is_integer() else hz
+        self.metadata = {**self.metadata, "render_fps": fps}
         self.actions = ActionMap(
             self.model, self.sim.units, ControlSettings(control, max_delta, ee_step, ee_turn)
         )
@@ -259,16 +264,18 @@ class So101TaskEnv(gym.Env):
         simulation's own stepping serves them; without, MuJoCo takes the steps in one call
         (the same physics, without the per-step bookkeeping)."""
         sim = self.sim
+        k = self._steps
+        n = max(1, round((k + 1) * self._period_steps) - round(k * self._period_steps))
         if sim.observers or self._viewer is not None:
-            rows = np.broadcast_to(targets, (self.substeps, len(targets)))
+            rows = np.broadcast_to(targets, (n, len(targets)))
             sim.advance(rows, viewer=self._viewer, phase=self.spec_name, keep_trace=False)
             return
         m, d = self.model, sim.data
         sim.command_array(targets, check=False)
-        t_end = d.time + self.substeps * m.opt.timestep
+        t_end = d.time + n * m.opt.timestep
         counts = d.warning.number  # a view: MuJoCo counts its warnings there
         counts[_DIVERGENCE] = 0
-        mujoco.mj_step(m, d, nstep=self.substeps)
+        mujoco.mj_step(m, d, nstep=n)
         bad = abs(d.time - t_end) > m.opt.timestep / 2 or not np.isfinite(d.qpos).all()
         if bad or counts[_DIVERGENCE].any():
             warned = [mujoco.mjtWarning(w).name for w in _DIVERGENCE if counts[w]]
@@ -378,17 +385,6 @@ def _size(value: object, what: str) -> tuple[int, int]:
         check_count(v, what, minimum=16, maximum=4096, even=True, unit=" pixels") for v in (h, w)
     )
     return dims  # type: ignore[return-value]
-
-
-def _substeps(hz: float, dt: float) -> int:
-    n = round(1.0 / (hz * dt))
-    if n < 1 or abs(n * dt * hz - 1.0) > 1e-6:
-        good = ", ".join(f"{1 / (k * dt):g}" for k in (5, 10, 20, 25, 50) if k * dt > 0)
-        raise SettingError(
-            f"control_hz = {hz:g} Hz is not a whole number of {dt * 1000:g} ms physics steps; "
-            f"expected a rate such as {good} Hz"
-        )
-    return n
 
 
 def _geom(model: mujoco.MjModel, name: str) -> int:

@@ -6,7 +6,7 @@ success rate (:func:`evaluate_expert`).
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +25,10 @@ TASKS = {"pick_cube": "so101sim/PickCube-v0", "cube_to_bowl": "so101sim/CubeToBo
 @dataclass(frozen=True)
 class EpisodeResult:
     """One episode: its seed, whether it succeeded, the steps it took, the sum of its rewards,
-    the simulated time, how many grasps the expert tried, and the video written (if any)."""
+    the simulated time at its end and when it first succeeded, how many grasps the expert
+    tried, the video written (if any) and its frames, the task's figures at the end
+    (``info``'s numbers, e.g. ``cube_rise_m``, ``cube_to_bowl_m``) and whether it ran to its
+    end (False: the viewer was closed)."""
 
     seed: int
     success: bool
@@ -34,6 +37,10 @@ class EpisodeResult:
     sim_time: float
     attempts: int
     video: Path | None = None
+    figures: dict[str, float] = field(default_factory=dict)
+    completed: bool = True
+    video_frames: int = 0
+    success_time: float | None = None
 
 
 def env_id(task: str) -> str:
@@ -58,7 +65,8 @@ def run_episode(
 ) -> EpisodeResult:
     """Run ``env``'s scripted expert for one episode from ``reset(seed=seed)``; it ends when
     the environment says so, or ``linger`` simulated seconds after the task first succeeded
-    (to show the result in a video of an environment that does not end on success)."""
+    (to show the result in a video of an environment that does not end on success), or when
+    the environment's viewer (``render_mode="human"``) is closed."""
     expert = expert_for(env)
     inner = env.unwrapped
     linger_steps = round(check_range(linger, "linger", low=0.0, high=60.0) * inner.control_hz)
@@ -67,8 +75,11 @@ def run_episode(
     try:
         obs, info = env.reset(seed=seed)
         expert.reset()
-        total, steps, done, first = 0.0, 0, False, None
+        total, steps, done, first, completed = 0.0, 0, False, None, True
         while not done:
+            if not _viewer_open(inner):
+                completed = False
+                break
             obs, reward, terminated, truncated, info = env.step(expert.act(obs))
             total += float(reward)
             steps += 1
@@ -85,7 +96,16 @@ def run_episode(
         total_reward=total,
         sim_time=inner.sim.time,
         attempts=expert.attempts + 1,
+        figures={k: float(v) for k, v in info.items() if k not in ("is_success", "time")},
+        completed=completed,
+        success_time=None if first is None else first / inner.control_hz,
     )
+
+
+def _viewer_open(env: Any) -> bool:
+    """False once the environment's viewer window (if it has one) has been closed."""
+    viewer = getattr(env, "_viewer", None)
+    return viewer is None or bool(viewer.is_running())
 
 
 def run_expert(
@@ -95,11 +115,14 @@ def run_expert(
     record: str | os.PathLike[str] | None = None,
     video: VideoSettings | None = None,
     force: bool = False,
+    viewer: bool = False,
     **env_kwargs: Any,
 ) -> EpisodeResult:
-    """One episode of ``task``'s scripted expert; with ``record``, an MP4 of it (the
-    ``front`` camera, 30 frames per simulated second, going on for a second after the task
-    succeeds) written and verified before this returns.
+    """One episode of ``task``'s scripted expert; with ``record``, an MP4 of it (by default
+    the ``front`` camera, 30 frames per simulated second; ``video`` sets size, rate, camera
+    and quality; going on for a second after the task succeeds) written and verified before
+    this returns. With ``viewer``, the episode is shown in MuJoCo's viewer at real-time speed
+    (a display is needed); closing the window ends it (``completed`` False).
 
     Raises:
         SettingError: an unknown task; OutputPathError, RecordingError: a bad video path or
@@ -107,20 +130,23 @@ def run_expert(
     """
     seed = check_count(seed, "seed", maximum=2**63 - 1)
     settings = video or VideoSettings(camera="front", caption=True)
-    if record is not None:
+    if record is not None or viewer:
         env_kwargs.setdefault("terminate_on_success", False)
+    if viewer:
+        env_kwargs["render_mode"] = "human"
     env = make(task, **env_kwargs)
     recorder = None
     try:
         if record is not None:
             recorder = VideoRecorder(record, env.unwrapped.model, settings, force=force)
-        result = run_episode(env, seed, video=recorder, linger=1.0 if record else 0.0)
+        result = run_episode(env, seed, video=recorder, linger=1.0 if record or viewer else 0.0)
     finally:
         written = recorder.close() if recorder is not None else None
         env.close()
     if record is not None and written is None:
         raise SettingError(f"the video {str(record)!r} was not written (no frame was drawn)")
-    return EpisodeResult(**{**result.__dict__, "video": written})
+    frames = recorder.frames if recorder is not None else 0
+    return EpisodeResult(**{**result.__dict__, "video": written, "video_frames": frames})
 
 
 @dataclass(frozen=True)

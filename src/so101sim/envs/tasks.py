@@ -37,6 +37,8 @@ class PickCubeEnv(So101TaskEnv):
     """Pick up the 2.5 cm cube and hold it at least 3 cm above the table."""
 
     scene_name = "pick_cube"
+    task = "pick_cube"
+    task_description = "Pick up the red cube."
     default_episode_seconds = 8.0
 
     def evaluate(self) -> Evaluation:
@@ -56,6 +58,8 @@ class CubeToBowlEnv(So101TaskEnv):
     """Pick up the cube and put it in the bowl."""
 
     scene_name = "cube_to_bowl"
+    task = "cube_to_bowl"
+    task_description = "Put the red cube in the blue bowl."
     default_episode_seconds = 12.0
 
     @property

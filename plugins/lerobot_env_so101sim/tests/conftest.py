@@ -1,0 +1,18 @@
+"""Test set-up: LeRobot offline, its home and calibration folders in a temporary folder.
+
+LeRobot reads ``HF_LEROBOT_HOME`` and ``HF_LEROBOT_CALIBRATION`` when it is first imported,
+so they are set here, before any test module imports it. Subprocesses (the CLIs) inherit them.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+_HOME = Path(tempfile.mkdtemp(prefix="so101sim-lerobot-home-"))
+os.environ["HF_HUB_OFFLINE"] = "1"
+os.environ["HF_DATASETS_OFFLINE"] = "1"
+os.environ["HF_LEROBOT_HOME"] = str(_HOME)
+os.environ["HF_LEROBOT_CALIBRATION"] = str(_HOME / "calibration")
+os.environ.setdefault("MPLBACKEND", "Agg")

@@ -1,0 +1,128 @@
+"""The env plugin against the real LeRobot: discovery, the config's contract (features, gym
+id, kwargs), ``make_env``, a rollout of a tiny ACT policy through LeRobot's own eval loop, and
+the same features as the robot plugin's datasets."""
+
+from __future__ import annotations
+
+import importlib.metadata
+from dataclasses import dataclass
+
+import draccus
+import gymnasium as gym
+import lerobot_env_so101sim as plugin
+import numpy as np
+import pytest
+from build_tiny_act import build
+from lerobot.envs.configs import EnvConfig
+from lerobot.envs.factory import make_env, make_env_pre_post_processors
+from lerobot.envs.utils import env_to_policy_features
+from lerobot.utils.import_utils import register_third_party_plugins
+from lerobot_env_so101sim import SO101SimCubeToBowlEnv, SO101SimPickCubeEnv
+
+from so101sim.errors import SettingError
+from so101sim.units import JOINT_NAMES
+
+SMALL = {"observation_height": 48, "observation_width": 64}
+
+
+@dataclass
+class _Cli:
+    env: EnvConfig
+
+
+def parse_env(*args: str) -> EnvConfig:
+    """An env config parsed from command-line flags, as ``lerobot-eval`` parses ``--env.*``."""
+    return draccus.parse(_Cli, args=[f"--env.{a}" for a in args]).env
+
+
+def test_lerobot_discovers_the_plugin_by_its_distribution_name():
+    dist = importlib.metadata.distribution("lerobot_env_so101sim")
+    assert dist.metadata["Name"] == "lerobot_env_so101sim" == plugin.__name__
+    register_third_party_plugins()
+    assert EnvConfig.get_choice_class("so101sim_pick_cube") is SO101SimPickCubeEnv
+    assert EnvConfig.get_choice_class("so101sim_cube_to_bowl") is SO101SimCubeToBowlEnv
+
+
+def test_the_config_names_the_gym_env_and_the_policys_features():
+    cfg = parse_env("type=so101sim_cube_to_bowl", "observation_height=48", "fps=25")
+    assert cfg.type == "so101sim_cube_to_bowl" and cfg.gym_id == "so101sim/CubeToBowl-v0"
+    assert cfg.gym_id in gym.registry
+    features = env_to_policy_features(cfg)
+    assert features["observation.state"].shape == (6,)
+    assert features["action"].shape == (6,)
+    assert features["observation.images.front"].shape == (3, 48, 640)
+    assert set(features) == {
+        "observation.state",
+        "action",
+        "observation.images.front",
+        "observation.images.wrist",
+    }
+    kwargs = cfg.gym_kwargs
+    assert kwargs["control"] == "joint" and kwargs["control_hz"] == 25.0
+    assert kwargs["image_size"] == (48, 640) and kwargs["cameras"] == ["front", "wrist"]
+    with_state = SO101SimCubeToBowlEnv(object_state=True)
+    assert env_to_policy_features(with_state)["observation.environment_state"].shape == (14,)
+
+
+def test_bad_values_fail_when_the_config_is_made():
+    with pytest.raises(SettingError, match="unknown camera 'top'"):
+        SO101SimPickCubeEnv(cameras=["top"])
+    with pytest.raises(SettingError, match="unknown task 'Stack-v0'"):
+        SO101SimPickCubeEnv(task="Stack-v0")
+    with pytest.raises(SettingError, match="observation_width"):
+        SO101SimPickCubeEnv(observation_width=63)
+    with pytest.raises(draccus.utils.ParsingError) as info:
+        parse_env("type=so101sim_pick_cube", "fps=0")
+    assert isinstance(info.value.__cause__, SettingError)
+
+
+def test_make_env_gives_the_observations_lerobot_maps_to_the_policys_inputs():
+    cfg = SO101SimPickCubeEnv(**SMALL, episode_length=5)
+    vec = make_env(cfg, n_envs=1)["so101sim_pick_cube"][0]
+    try:
+        obs, _ = vec.reset(seed=[0])
+        assert obs["agent_pos"].shape == (1, 6) and obs["agent_pos"].dtype == np.float32
+        assert obs["pixels"]["front"].shape == (1, 48, 64, 3)
+        assert obs["pixels"]["wrist"].dtype == np.uint8
+        assert vec.call("_max_episode_steps") == (5,)
+        assert vec.call("task_description") == ("Pick up the red cube.",)
+        for _ in range(5):
+            obs, _, terminated, truncated, _ = vec.step(obs["agent_pos"])
+        assert truncated[0] and not terminated[0]
+    finally:
+        vec.close()
+
+
+def test_a_tiny_act_policy_runs_through_lerobots_rollout(tmp_path):
+    from lerobot.scripts.lerobot_eval import rollout
+
+    cfg = SO101SimPickCubeEnv(**SMALL, episode_length=12)
+    policy, pre, post = build(cfg, tmp_path / "policy")
+    assert (tmp_path / "policy" / "config.json").is_file()
+    env_pre, env_post = make_env_pre_post_processors(cfg, policy.config)
+    vec = make_env(cfg, n_envs=1)["so101sim_pick_cube"][0]
+    try:
+        policy.eval()
+        out = rollout(vec, policy, env_pre, env_post, pre, post, seeds=[3])
+    finally:
+        vec.close()
+    assert out["action"].shape == (1, 12, 6)
+    assert bool(out["done"][0, -1]) and np.isfinite(out["action"].numpy()).all()
+
+
+def test_the_features_are_those_the_robot_plugin_records():
+    robot_plugin = pytest.importorskip("lerobot_robot_so101sim")
+    from lerobot.robots import make_robot_from_config
+    from lerobot.utils.feature_utils import hw_to_dataset_features
+
+    cams = {n: robot_plugin.SO101SimCameraConfig(width=64, height=48) for n in ("front", "wrist")}
+    robot = make_robot_from_config(robot_plugin.SO101SimConfig(mode="lockstep", cameras=cams))
+    recorded = hw_to_dataset_features(robot.observation_features, "observation")
+    recorded.update(hw_to_dataset_features(robot.action_features, "action"))
+    env = env_to_policy_features(SO101SimPickCubeEnv(**SMALL))
+    assert set(recorded) == set(env)
+    assert recorded["observation.state"]["names"] == [f"{j}.pos" for j in JOINT_NAMES]
+    assert recorded["action"]["names"] == [f"{j}.pos" for j in JOINT_NAMES]
+    for cam in ("front", "wrist"):
+        h, w, c = recorded[f"observation.images.{cam}"]["shape"]
+        assert env[f"observation.images.{cam}"].shape == (c, h, w)

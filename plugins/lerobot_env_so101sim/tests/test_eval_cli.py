@@ -1,0 +1,61 @@
+"""``lerobot-eval`` itself on the so101sim environment, with a tiny ACT policy built and saved
+locally (untrained: the test is that LeRobot's CLI runs the environment end to end)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from build_tiny_act import build
+from lerobot_env_so101sim import SO101SimPickCubeEnv
+
+pytestmark = pytest.mark.cli
+
+STEPS = 20  # env steps per episode (30 Hz: 0.67 s of simulated time)
+
+
+def _lerobot_eval() -> str:
+    found = shutil.which("lerobot-eval") or str(Path(sys.executable).parent / "lerobot-eval")
+    assert Path(found).exists(), "lerobot-eval is not installed beside this Python"
+    return found
+
+
+def test_lerobot_eval_runs_two_episodes_of_a_local_policy(tmp_path):
+    size = {"observation_height": 48, "observation_width": 64}
+    build(SO101SimPickCubeEnv(**size), tmp_path / "policy")
+    out = tmp_path / "eval"
+    args = [
+        _lerobot_eval(),
+        "--env.type=so101sim_pick_cube",
+        "--env.observation_height=48",
+        "--env.observation_width=64",
+        "--env.visualization_height=96",
+        "--env.visualization_width=128",
+        f"--env.episode_length={STEPS}",
+        f"--policy.path={tmp_path / 'policy'}",
+        "--eval.n_episodes=2",
+        "--eval.batch_size=1",
+        f"--output_dir={out}",
+    ]
+    done = subprocess.run(
+        args,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        timeout=900,
+        env={**os.environ, "HF_HUB_OFFLINE": "1"},
+    )
+    assert done.returncode == 0, done.stdout[-4000:]
+    assert "Traceback" not in done.stdout, done.stdout[-4000:]
+    assert "End of eval" in done.stdout
+    info = json.loads((out / "eval_info.json").read_text())
+    overall = info["overall"]
+    assert overall["n_episodes"] == 2 and 0.0 <= overall["pc_success"] <= 100.0
+    assert info["per_task"][0]["task_group"] == "so101sim_pick_cube"
+    videos = [Path(p) for p in overall["video_paths"]]
+    assert len(videos) == 2 and all(p.is_file() and p.stat().st_size > 0 for p in videos)
