@@ -325,8 +325,8 @@ class Worker:
         start = units.from_radians(plan.start - np.radians(v.zero_offset_deg))
         acc = _Accumulator(len(plan.phases), units)
         last_cmd = start  # the commanded target before the first step
+        offset, s0, warm = self._start(v)  # writes the variant into the model: read it after
         limit = np.abs(self.m.actuator_forcerange[self.idx.actuator, 1])
-        offset, s0, warm = self._start(v)
         force_of = self._forces_of(acc, limit)
         # the single check's recorder also reads the forces and contacts before the first step
         force_of(0, np.array([s0[0]]), self.d.sensordata[None].copy())
