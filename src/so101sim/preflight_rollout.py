@@ -20,6 +20,9 @@ measure each as the single check does.
   the thread that ran it.
 
 The figures are then judged by :func:`so101sim.preflight_judge.judge`, the single check's own.
+
+(About 440 lines: the block-by-block reduction mirrors :mod:`so101sim.preflight_measure` figure
+for figure, and is kept next to the rollout loop that feeds it.)
 """
 
 from __future__ import annotations
