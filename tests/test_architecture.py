@@ -23,7 +23,7 @@ PACKAGE = Path(so101sim.__file__).parent
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("errors/validation", ("errors", "validation", "gl", "simclock")),
     ("units", ("units",)),
-    ("model", ("model", "modelcache")),
+    ("model", ("model", "modelcache", "variants")),
     ("planning", ("profiles", "trajectory", "kinematics", "kinematics.*")),
     ("simulation", ("simulation", "stepping")),
     ("motion", ("motion", "motionfile", "motionfile_*")),
@@ -36,6 +36,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
             "preflight",
             "preflight.*",
             "preflight_*",
+            "distributed",
             "posefinder",
             "framing",
             "scenes",

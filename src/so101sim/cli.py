@@ -45,7 +45,7 @@ from .cli_tools import (
     output_hint,
     split_script_args,
 )
-from .errors import So101SimError
+from .errors import SettingError, So101SimError
 from .validation import check_duration
 
 if TYPE_CHECKING:
@@ -333,6 +333,12 @@ def _add_check_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     for flag, default, text in _THRESHOLD_OPTIONS:
         p.add_argument(flag, type=float, default=default, help=f"{text} (default {default:g})")
+    v = p.add_argument_group("robust preflight (perturbed arms; ranges: the file's [variants])")
+    v.add_argument("--variants", type=int, metavar="N", help="run on N perturbed arms (1-100000)")
+    v.add_argument("--seed", type=int, default=0, help="seed of the variants (default 0)")
+    v.add_argument("--threads", type=int, help="threads (default: every core)")
+    v.add_argument("--plot", metavar="PNG", help="histograms of the variants' figures")
+    v.add_argument("--ray", metavar="ADDRESS", help="run on Ray: auto, local or an address")
 
 
 def _add_teleop_options(p: argparse.ArgumentParser) -> None:
@@ -465,12 +471,41 @@ def cmd_check(args: argparse.Namespace) -> int:
     # a bad threshold is a SettingError: main() reports it
     thresholds = Thresholds(**{name: getattr(args, name) for name in names})
     motion = args.motion if args.motion else lab_motion_path()
+    if args.variants is not None:
+        return _check_variants(args, motion, thresholds)
+    if any(getattr(args, o) is not None for o in ("threads", "plot", "ray")):
+        raise SettingError("--threads, --plot and --ray go with --variants N; expected --variants")
     with output_hint(args.motion, "so101sim run "):
         report = check_motion_file(
             motion, model=args.model, thresholds=thresholds, strict=args.strict
         )
     print(json.dumps(report.to_dict(), indent=2) if args.json else format_report(report))
     return 0 if report.passed else 1
+
+
+def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> int:
+    import json
+
+    from . import preflight_variants as pv  # imports MuJoCo
+
+    settings = {"model": args.model, "thresholds": thresholds, "strict": args.strict}
+    if args.plot:
+        pv.check_plot_path(args.plot)  # before anything runs
+    if args.ray is None:
+        report = pv.check_variants(
+            motion, count=args.variants, seed=args.seed, threads=args.threads, **settings
+        )
+    else:
+        from .distributed import run_on_ray
+
+        job = pv.make_job(motion, count=args.variants, seed=args.seed, **settings)
+        report = pv.summarize(job, run_on_ray(job, args.ray))
+    if args.plot:
+        pv.plot_variants(report, args.plot, force=True)
+    print(json.dumps(report.to_dict(), indent=2) if args.json else pv.format_variants(report))
+    if args.plot and not args.json:
+        print(f"wrote {args.plot}")
+    return 0 if report.passed == len(report.outcomes) else 1
 
 
 def cmd_teleop(args: argparse.Namespace) -> int:

@@ -110,7 +110,8 @@ BUILTIN_POSES: dict[str, dict[str, float]] = {"rest": dict(STARTING_POSE), "zero
 """Poses every motion file may use without defining them."""
 
 UNITS = ("deg", "rad")
-TOP_KEYS = ("description", "units", "profile", "start", "poses", "steps")
+TOP_KEYS = ("description", "units", "profile", "start", "poses", "steps", "variants")
+# "variants": the ranges of `so101sim check --variants`, read by so101sim.preflight_variants
 STEP_KEYS = {
     "move": ("move", "duration", "profile", "name"),
     "hold": ("hold", "name"),

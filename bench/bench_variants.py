@@ -1,0 +1,80 @@
+"""Robust preflight (``so101sim check --variants N``) next to a raw rollout of the same
+variants, side by side in one run, and its scaling from 1 to 2 threads.
+
+    PYTHONPATH=src python bench/bench_variants.py [COUNT] [MOTION.toml]
+
+*Raw rollout*: the same worker threads, each writing the same variants into its model copy
+(``apply_variant``, ``mj_setConst``) and rolling out the same controls in the same blocks with
+``mujoco.rollout``, with nothing measured. *Robust preflight*: ``check_variants`` (the model
+and motion prepared, every variant measured and judged, the report). The goal (issue 14) is a
+ratio of at most 1.15.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+
+from so101sim.model import scene_path
+from so101sim.motionfile import lab_motion_path, load_motion
+from so101sim.preflight_judge import Thresholds
+from so101sim.preflight_rollout import Worker, plan_motion, sensor_model
+from so101sim.preflight_variants import check_variants
+from so101sim.variants import sample_variants
+
+
+def raw_rollout(base, plan, variants, threads: int) -> None:
+    todo = iter(variants)
+    lock = threading.Lock()
+
+    def work() -> None:
+        w = Worker(base, plan, Thresholds())
+        while True:
+            with lock:
+                v = next(todo, None)
+            if v is None:
+                return
+            offset, s0, warm = w._start(v)
+            for _ in w.blocks(offset, s0, warm):
+                pass
+
+    pool = [threading.Thread(target=work) for _ in range(threads)]
+    for t in pool:
+        t.start()
+    for t in pool:
+        t.join()
+
+
+def timed(fn) -> float:
+    t0 = time.perf_counter()
+    fn()
+    return time.perf_counter() - t0
+
+
+def main() -> None:
+    count = int(sys.argv[1]) if len(sys.argv) > 1 else 1000
+    path = sys.argv[2] if len(sys.argv) > 2 else lab_motion_path()
+    motion = load_motion(path)
+    base = sensor_model(scene_path())  # compiled (or cached) before timing
+    plan = plan_motion(base, motion.steps, motion.start, lines=motion.lines)
+    variants = sample_variants(count, 0)
+    steps = count * len(plan.targets)
+    print(f"{count} variants of {path}: {len(plan.targets)} steps each, {steps:,} in all")
+    rows = {}
+    for threads in (2, 1):
+        raw = timed(lambda: raw_rollout(base, plan, variants, threads))  # noqa: B023
+        robust = timed(lambda: check_variants(path, count=count, threads=threads))  # noqa: B023
+        rows[threads] = (raw, robust)
+        print(
+            f"{threads} thread(s): raw rollout {raw:7.2f} s ({steps / raw / 1e3:5.0f}k steps/s)"
+            f"   robust preflight {robust:7.2f} s   ratio {robust / raw:.2f}"
+        )
+    print(
+        f"scaling 1 -> 2 threads: raw rollout {rows[1][0] / rows[2][0]:.2f}x, "
+        f"robust preflight {rows[1][1] / rows[2][1]:.2f}x"
+    )
+
+
+if __name__ == "__main__":
+    main()
