@@ -7,7 +7,7 @@ from typing import ClassVar
 
 import pytest
 
-from so101sim import cli, teleop
+from so101sim import cli, cli_tools, teleop
 from so101sim.cli import build_parser, main
 from so101sim.model import model_dir
 from so101sim.units import JOINT_NAMES
@@ -212,7 +212,7 @@ def test_recording_shows_no_progress_bar_off_a_terminal(monkeypatch, tmp_path):
 def test_the_parsers_quality_choices_are_the_recorders():
     from so101sim.recording import QUALITY_CHOICES
 
-    assert cli.QUALITY_CHOICES == QUALITY_CHOICES
+    assert cli_tools.QUALITY_CHOICES == QUALITY_CHOICES
 
 
 def test_building_the_parser_imports_no_mujoco_nor_numpy():

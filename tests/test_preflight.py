@@ -222,3 +222,24 @@ def test_check_reports_how_far_the_tip_strayed_from_a_straight_line():
     assert commanded <= 2.0 and 0 <= measured < 20.0
     assert "tip off the straight line" in format_report(report)
     assert list(report.to_dict()["steps"][0]["line_deviation_mm"]) == [commanded, measured]
+
+
+def test_a_motion_files_tip_moves_are_planned_on_the_checked_model(monkeypatch):
+    import so101sim.motionfile as motionfile
+    from so101sim.model import load_model
+    from so101sim.preflight import check_motion_file
+
+    seen = []
+    planner = motionfile.TipPlanner
+
+    def recording_planner(model=None):
+        seen.append(model)
+        return planner(model)
+
+    monkeypatch.setattr(motionfile, "TipPlanner", recording_planner)
+    m = load_model()
+    report = check_motion_file(
+        lab_motion_path().parent.parent / "examples" / "tip_square.toml", model=m
+    )
+    assert seen and all(model is m for model in seen)
+    assert report.steps  # the square was checked step by step

@@ -41,6 +41,7 @@ from . import __version__
 from .cli_tools import (
     add_camera_options,
     add_commands,
+    add_video_options,
     camera_options,
     output_hint,
     split_script_args,
@@ -58,9 +59,6 @@ if TYPE_CHECKING:
     from .units import Pose
 
 SubParsers = argparse._SubParsersAction  # the object add_subparsers() returns
-
-# recording.QUALITY_CHOICES (a test checks they agree), repeated: the parser imports no MuJoCo
-QUALITY_CHOICES = ("auto", "draft", "full")
 
 
 # ---------------------------------------------------------------------------- printing
@@ -227,18 +225,8 @@ def _recording_parent() -> argparse.ArgumentParser:
     g.add_argument("--record", metavar="PATH", help="write an H.264 video of the run (.mp4)")
     g.add_argument("--plot", metavar="PATH", help="plot commanded vs measured angles (.png)")
     g.add_argument("--log", metavar="PATH", help="log every control step to a CSV file")
-    g.add_argument("--width", type=int, default=640, help="video width in pixels (default 640)")
-    g.add_argument("--height", type=int, default=480, help="video height in pixels (default 480)")
-    g.add_argument("--fps", type=float, default=30.0, help="video frames per simulated second")
-    g.add_argument(
-        "--camera", default="free", help="'free' (the viewer's view) or a camera of the model"
-    )
-    g.add_argument(
-        "--quality",
-        choices=QUALITY_CHOICES,
-        default="auto",
-        help="draft: fast on a CPU (simplified meshes, no shadows); full: the model's look; "
-        "auto (default): draft when rendering on the CPU, full on a GPU",
+    add_video_options(
+        g, camera="free", camera_help="'free' (the viewer's view) or a camera of the model"
     )
     g.add_argument(
         "--caption",

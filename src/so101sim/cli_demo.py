@@ -9,10 +9,9 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-SubParsers = Any  # argparse's private _SubParsersAction
+from .cli_tools import add_video_options
 
-# recording.QUALITY_CHOICES, repeated: the parser imports no MuJoCo
-QUALITY_CHOICES = ("auto", "draft", "full")
+SubParsers = Any  # argparse's private _SubParsersAction
 
 
 def add_demo_command(sub: SubParsers) -> None:
@@ -35,17 +34,8 @@ def add_demo_command(sub: SubParsers) -> None:
     )
     g = p.add_argument_group("recording")
     g.add_argument("--record", metavar="PATH", help="write an H.264 video of the episode (.mp4)")
-    g.add_argument("--width", type=int, default=640, help="video width in pixels (default 640)")
-    g.add_argument("--height", type=int, default=480, help="video height in pixels (default 480)")
-    g.add_argument("--fps", type=float, default=30.0, help="video frames per simulated second")
-    g.add_argument(
-        "--camera", default="front", help="'front' (default), 'wrist', or 'free' (fitted view)"
-    )
-    g.add_argument(
-        "--quality",
-        choices=QUALITY_CHOICES,
-        default="auto",
-        help="draft: fast on a CPU; full: the model's look; auto (default): draft on a CPU",
+    add_video_options(
+        g, camera="front", camera_help="'front' (default), 'wrist', or 'free' (fitted view)"
     )
     g.add_argument(
         "--caption",

@@ -48,6 +48,25 @@ def output_hint(motion: str | None, command: str = "") -> Iterator[None]:
         ) from None
 
 
+# recording.QUALITY_CHOICES (a test checks they agree), repeated: the parser imports no MuJoCo
+QUALITY_CHOICES = ("auto", "draft", "full")
+
+
+def add_video_options(g: argparse._ArgumentGroup, *, camera: str, camera_help: str) -> None:
+    """A recording command's video options: --width, --height, --fps, --camera, --quality."""
+    g.add_argument("--width", type=int, default=640, help="video width in pixels (default 640)")
+    g.add_argument("--height", type=int, default=480, help="video height in pixels (default 480)")
+    g.add_argument("--fps", type=float, default=30.0, help="video frames per simulated second")
+    g.add_argument("--camera", default=camera, help=camera_help)
+    g.add_argument(
+        "--quality",
+        choices=QUALITY_CHOICES,
+        default="auto",
+        help="draft: fast on a CPU (simplified meshes, no shadows); full: the model's look; "
+        "auto (default): draft when rendering on the CPU, full on a GPU",
+    )
+
+
 # ---------------------------------------------------------------------------- camera options
 def add_camera_options(g: argparse._ArgumentGroup) -> None:
     """The free camera's options of a recording command: --view, --azimuth, --elevation,

@@ -434,8 +434,15 @@ def parse_motion(
     return _Loader(loc, path, units, model).load(data)
 
 
-def load_motion(path: str | Path, *, units: ArmUnits | None = None) -> MotionFile:
+def load_motion(
+    path: str | Path,
+    *,
+    units: ArmUnits | None = None,
+    model: mujoco.MjModel | None = None,
+) -> MotionFile:
     """Read a motion file (TOML, UTF-8, at most 1 MiB). Nothing in it is evaluated.
+
+    ``units`` and ``model`` as in :func:`parse_motion` (``model`` plans the tip moves).
 
     Raises:
         MotionFileError: the file does not exist, cannot be read, is not a regular file (a
@@ -450,7 +457,7 @@ def load_motion(path: str | Path, *, units: ArmUnits | None = None) -> MotionFil
     except UnreadableFileError as exc:
         reason = "no such file" if exc.missing else f"not a motion file: {exc}"
         raise MotionFileError(str(p), 0, f"{reason}; expected a TOML motion file (text)") from None
-    return parse_motion(text, path=str(p), units=units)
+    return parse_motion(text, path=str(p), units=units, model=model)
 
 
 __all__ = [

@@ -138,7 +138,7 @@ def check_motion_file(
 ) -> PreflightReport:
     """Load a motion file and :func:`preflight` it from its start pose."""
     m = model if isinstance(model, mujoco.MjModel) else load_model(model)
-    motion = load_motion(path, units=arm_units(m))
+    motion = load_motion(path, units=arm_units(m), model=m)
     return preflight(
         motion.steps,
         start=motion.start,
