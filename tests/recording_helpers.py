@@ -72,7 +72,8 @@ def csv_problems(path, timestep: float = 0.002) -> list[str]:
 
 # ---------------------------------------------------------------------------- signal driver
 _CHILD = r"""
-import signal, sys
+import faulthandler, signal, sys
+faulthandler.enable()  # a crash leaves its stack in the child's stderr
 for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # between runs: ignored
     signal.signal(s, lambda *a: None)
 from so101sim import cli
@@ -147,11 +148,12 @@ def interrupt_recordings(
     has not ended ``hang_s`` seconds after its signals."""
     rng = random.Random(seed)
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), "PYTHONUNBUFFERED": "1"}
+    errors = open(folder / "child-stderr.txt", "w")  # noqa: SIM115 (closed with the child)
     child = subprocess.Popen(
         [sys.executable, "-c", _CHILD],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
+        stderr=errors,
         text=True,
         env=env,
     )
@@ -189,7 +191,14 @@ def interrupt_recordings(
                 printed += line
             watchdog.cancel()
             if not line:
-                raise AssertionError(f"run {i} {plan} hung for {hang_s} s:\n{printed}")
+                try:
+                    status = child.wait(timeout=30)
+                except subprocess.TimeoutExpired:
+                    status = None
+                hung = status is None or status == -signal.SIGKILL  # the watchdog's kill
+                what = f"hung for {hang_s} s" if hung else f"died (status {status})"
+                stderr = (folder / "child-stderr.txt").read_text()[-3000:]
+                raise AssertionError(f"run {i} {plan} {what}:\n{printed}\nstderr:\n{stderr}")
             outcome = Outcome(tuple(s.name for s in plan), int(line.split()[1]), [])
             if outcome.code != 128 + plan[0]:
                 outcome.problems.append(f"exit status {outcome.code}")
@@ -199,6 +208,7 @@ def interrupt_recordings(
         child.stdin.close()
         child.kill()
         child.wait()
+        errors.close()
     return outcomes
 
 
