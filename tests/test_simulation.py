@@ -394,3 +394,39 @@ def test_a_joint_space_tip_move_ends_at_the_tip_and_paths_are_checked():
         sim.move_to(tip=(0.2, 0, 0.1))
     with pytest.raises(SettingError, match="target pose or tip"):
         sim.move_to(duration=1.0)
+
+
+def test_stepping_with_nothing_watching_is_the_same_physics_bit_for_bit():
+    watched, plain = Simulation(), Simulation()
+    for s in (watched, plain):
+        s.command(ZERO_POSE)
+    for n in (1, 10, 47, 48, 5000):  # below, at and above the rollout and chunk sizes
+        watched.step(n, trace=True)  # the observed path (a per-step trace)
+        plain.step(n, trace=False)  # MuJoCo's own loop
+        assert plain.time == watched.time
+        assert np.array_equal(plain.data.qpos, watched.data.qpos)
+        assert np.array_equal(plain.data.qvel, watched.data.qvel)
+        assert np.array_equal(plain.data.ctrl, watched.data.ctrl)
+
+
+def test_divergence_with_nothing_watching_is_caught_where_it_happened():
+    for start in (0, 200):  # at time 0 a reset looks like the start: the warnings tell
+        sim, watched = _unstable_sim(), _unstable_sim()
+        for s in (sim, watched):
+            s.data.time = start * s.timestep
+            s.command(ZERO_POSE)
+        with pytest.raises(SimulationDivergedError) as seen:
+            watched.step(500, trace=True)
+        with pytest.raises(SimulationDivergedError) as fast:
+            sim.step(500, trace=False)
+        assert str(fast.value) == str(seen.value)  # same step, same cause
+        assert sim.time == watched.time and np.isfinite(sim.data.qpos).all()
+        assert np.array_equal(sim.data.qpos, watched.data.qpos)
+
+
+def test_a_never_commanded_arm_holds_its_pose_with_nothing_watching():
+    sim = Simulation()
+    before = sim.pose()
+    sim.step(1000, trace=False)
+    assert sim.pose() == pytest.approx(before, abs=1.0)
+    assert sim.commanded() == pytest.approx(before, abs=1e-6)

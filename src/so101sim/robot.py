@@ -60,7 +60,7 @@ from typing import Any
 import numpy as np
 
 from .errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, RobotConfigError
-from .robot_actions import clamp_relative, clip_to_limits, parse_action
+from .robot_actions import JOINT_INDEX, clamp_relative, clip_to_limits, parse_action
 from .robot_cameras import CameraRig, SimCamera, scene_model
 from .robot_config import (
     GRIPPER_TORQUE_FRACTION,
@@ -72,7 +72,7 @@ from .robot_config import (
 from .robot_helpers import MOTOR_KEYS
 from .robot_threads import RobotThreads
 from .simulation import Simulation
-from .units import GRIPPER_INDEX, JOINT_NAMES, LEROBOT_SUFFIX, STARTING_POSE, parse_pose
+from .units import GRIPPER_INDEX, STARTING_POSE, parse_pose
 from .validation import check_duration
 
 log = logging.getLogger(__name__)
@@ -127,6 +127,7 @@ class SO101SimFollower:
         # config's cameras and scene preset added; the rig renders them (robot_cameras).
         model = scene_model(self.config.cameras, self.config.model, self.config.scene)
         self._sim = Simulation(model, initial_pose=pose)
+        self._limits = tuple(a.tolist() for a in self._sim.units.limits)  # floats, per action
         self._rig = CameraRig(self._sim, self.config.cameras)
         self._gripper = int(self._sim.index.actuator[GRIPPER_INDEX])
         self._gripper_forcerange = self._sim.model.actuator_forcerange[self._gripper].copy()
@@ -233,14 +234,15 @@ class SO101SimFollower:
         """
         self._check_connected()
         with self._lock:
-            values = self._sim.pose_array()
+            values = self._sim.pose_array().tolist()
             # LeRobot clamps the gripper's reading to its calibrated range (0..100)
             values[GRIPPER_INDEX] = min(100.0, max(0.0, values[GRIPPER_INDEX]))
-            shot = self._rig.snapshot()  # cameras: the state they show, copied under the lock
+            shot = self._rig.snapshot() if self._rig.specs else None  # copied under the lock
             if self.config.mode == "lockstep" and self.config.lockstep_observation_seconds:
                 self._runner.advance(self.config.lockstep_observation_seconds)
-        obs: dict[str, Any] = dict(zip(MOTOR_KEYS, values.tolist(), strict=True))
-        obs.update(self._rig.render(shot))  # cameras: rendered outside the physics lock
+        obs: dict[str, Any] = dict(zip(MOTOR_KEYS, values, strict=True))
+        if shot is not None:
+            obs.update(self._rig.render(shot))  # cameras: rendered outside the physics lock
         return obs
 
     def send_action(self, action: Mapping[str, Any]) -> dict[str, float]:
@@ -257,24 +259,24 @@ class SO101SimFollower:
             JointValueError: a goal that is not a finite number.
         """
         self._check_connected()
-        goals = parse_action(action)
+        goals = parse_action(action)  # plain floats from here on: microseconds per action
+        names = list(goals)
+        idx = [JOINT_INDEX[n] for n in names]
         with self._lock:
-            present = self._sim.pose_array()
-            full = self._sim.commanded_array()
-            names = list(goals)
-            idx = [JOINT_NAMES.index(n) for n in names]
-            wanted = np.array([goals[n] for n in names])
-            safe, clamped = clamp_relative(names, wanted, present[idx], self._caps)
-            if clamped:
-                log.warning(_CLAMP_MESSAGE, pformat(clamped, indent=4))
-            sent, clipped = clip_to_limits(names, safe, self._sim.units.limits)
+            wanted: Any = list(goals.values())
+            if self._caps is not None:
+                present = self._sim.pose_array()[idx]
+                safe, clamped = clamp_relative(names, np.array(wanted), present, self._caps)
+                wanted = safe.tolist()
+                if clamped:
+                    log.warning(_CLAMP_MESSAGE, pformat(clamped, indent=4))
+            sent, clipped = clip_to_limits(names, wanted, self._limits)
             if clipped:
                 log.warning(_CLIP_MESSAGE, pformat(clipped, indent=4))
-            full[idx] = sent
-            self._sim.command_array(full, check=False)
+            self._sim.command_joints(idx, sent)
             if self.config.mode == "lockstep" and self.config.lockstep_action_seconds:
                 self._runner.advance(self.config.lockstep_action_seconds)
-        return {f"{n}{LEROBOT_SUFFIX}": float(v) for n, v in zip(names, sent, strict=True)}
+        return dict(zip([MOTOR_KEYS[i] for i in idx], sent, strict=True))
 
     def disconnect(self) -> None:
         """Stop the physics thread (joined: none is left running) and close the viewer.

@@ -9,6 +9,7 @@ in LeRobot's warning layout, for the robot to log.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -44,8 +45,15 @@ def parse_action(action: object) -> dict[str, float]:
     return dict(_action_item(key, value) for key, value in action.items())
 
 
+_NAMES = {key: key[: -len(LEROBOT_SUFFIX)] for key in MOTOR_KEYS}
+JOINT_INDEX = {name: i for i, name in enumerate(JOINT_NAMES)}
+"""Joint name -> its index in :data:`JOINT_NAMES`."""
+
+
 def _action_item(key: object, value: object) -> tuple[str, float]:
     """``("<joint>.pos", value)`` -> ``(joint name, value as a float)``, checked."""
+    if type(value) is float and type(key) is str and key in _NAMES and math.isfinite(value):
+        return _NAMES[key], value  # the common case, checked in a few operations
     if not (isinstance(key, str) and key in MOTOR_KEYS):
         raise JointNameError(
             f"unknown action key {key!r}; valid keys are {', '.join(MOTOR_KEYS)} "
@@ -80,24 +88,23 @@ def clamp_relative(
 
 
 def clip_to_limits(
-    names: Sequence[str], goal: np.ndarray, limits: tuple[np.ndarray, np.ndarray]
-) -> tuple[np.ndarray, Changes]:
-    """Clip each goal to its joint's ``limits`` (``(lower, upper)``, six values each, arm
-    units). Returns the clipped goals and, per joint moved by more than
-    :data:`CLIP_WARN_TOLERANCE`, its original and clipped goal and the limits."""
+    names: Sequence[str], goal: Sequence[float], limits: tuple[Sequence[float], Sequence[float]]
+) -> tuple[list[float], Changes]:
+    """Clip each goal to its joint's ``limits`` (``(lower, upper)``, six values each in
+    :data:`JOINT_NAMES` order, arm units). Returns the clipped goals and, per joint moved by
+    more than :data:`CLIP_WARN_TOLERANCE`, its original and clipped goal and the limits."""
     lo, hi = limits
-    idx = [JOINT_NAMES.index(n) for n in names]
-    clipped = np.clip(goal, lo[idx], hi[idx])
-    changes: Changes = {
-        n: {
-            "original goal_pos": float(g),
-            "clipped goal_pos": float(c),
-            "limits": (float(lo[i]), float(hi[i])),
-        }
-        for n, g, c, i in zip(names, goal, clipped, idx, strict=True)
-        if abs(c - g) > CLIP_WARN_TOLERANCE
-    }
+    clipped: list[float] = []
+    changes: Changes = {}
+    for n, g in zip(names, goal, strict=True):
+        i = JOINT_INDEX[n]
+        low, high = float(lo[i]), float(hi[i])
+        c = low if g < low else high if g > high else float(g)
+        clipped.append(c)
+        if abs(c - g) > CLIP_WARN_TOLERANCE:
+            changes[n] = {
+                "original goal_pos": float(g),
+                "clipped goal_pos": c,
+                "limits": (low, high),
+            }
     return clipped, changes
-
-
-__all__ = ["clamp_relative", "clip_to_limits", "parse_action"]

@@ -22,6 +22,7 @@ import weakref
 from typing import Any
 
 from .simulation import Pacer, Simulation
+from .stepping import hold_steps
 
 log = logging.getLogger(__name__)
 
@@ -50,6 +51,7 @@ class RobotThreads:
         self.viewer: Any = None
         self._viewer_stack: contextlib.ExitStack | None = None
         self._last_sync = -math.inf
+        self._dt = sim.timestep
 
     def tie_to(self, owner: object) -> weakref.finalize:
         """Stop these threads at interpreter exit (an ``atexit`` hook registered now, so it
@@ -92,11 +94,16 @@ class RobotThreads:
 
     def advance(self, seconds: float) -> None:
         """Step ``seconds`` of simulated time holding the goals (lock held by the caller)."""
-        n = round(seconds / self.sim.timestep)
+        sim = self.sim
+        n = round(seconds / self._dt)
         if n <= 0:
             return
-        self.sim.step(n)
-        self.sync_viewer()
+        if sim.was_commanded and not sim.observers:  # the lockstep path: nothing else to do
+            hold_steps(sim.model, sim.data, None, n, self._dt)
+        else:
+            sim.step(n, trace=False)
+        if self.viewer is not None:
+            self.sync_viewer()
 
     def sync_viewer(self) -> None:
         """Hand the state to the viewer, at most 60 times a wall second (lock held by the

@@ -38,7 +38,7 @@ from .profiles import (
     plan,
     steps_for,
 )
-from .stepping import Observer, Pacer, Trace, ViewerObserver, advance, measured_radians
+from .stepping import Observer, Pacer, Trace, ViewerObserver, advance, hold_steps, measured_radians
 from .units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose, unit_warnings
 from .validation import MAX_DURATION_S, check_choice, check_count
 
@@ -234,6 +234,15 @@ class Simulation:
         with self.lock:
             self._set_target(self.units.to_radians(v))
 
+    def command_joints(self, indices: list[int], values: list[float]) -> None:
+        """Set the targets of some joints (indices into :data:`JOINT_NAMES`) to ``values``, arm
+        units already checked and inside the limits (the robot's per-action path: no arrays)."""
+        units, act = self.units, self.index.actuator
+        q = [units.joint_to_radians(i, v) for i, v in zip(indices, values, strict=True)]
+        with self.lock:
+            self.data.ctrl[act[indices]] = q
+            self._state.commanded = True
+
     def _set_target(self, q: np.ndarray) -> None:
         self.data.ctrl[self.index.actuator] = q
         self._state.commanded = True
@@ -311,6 +320,13 @@ class Simulation:
         per-step arrays when ``trace`` is True, or (None) when ``n`` is at most
         :data:`TRACE_AUTO_STEPS`."""
         n = check_count(n, "n", unit=" steps", maximum=round(MAX_DURATION_S / self.timestep))
+        if viewer is None and not observers and not self.observers and not _keep(trace, n):
+            with self.lock:  # nothing watches: MuJoCo's own loop, on the targets as set
+                q = None if self.was_commanded else self.units.to_radians(self.pose_array())
+                self._state.commanded = True
+                hold_steps(self.model, self.data, q, n)
+            empty = np.empty((0, len(JOINT_NAMES)))
+            return Trace(np.empty(0), empty, empty, True, n)
         target = self.commanded_array()
         return self.advance(
             np.broadcast_to(target, (n, len(target))),

@@ -285,6 +285,48 @@ def _block_size(observers: Sequence[Observer], now: float, dt: float, left: int)
     return min(left, _CHUNK, max(1, math.ceil((t_next - now) / dt - 1e-9)))
 
 
+def hold_steps(
+    m: mujoco.MjModel, d: mujoco.MjData, target: np.ndarray | None, n: int, dt: float = 0.0
+) -> int:
+    """Step ``n`` times commanding ``target`` (radians, arm joint order; None: the targets in
+    ``d.ctrl``), nothing watching: :func:`advance` without observers or trace, in MuJoCo's own
+    loop (``mj_step(nstep=k)``, the same physics bit for bit), blocks of at most
+    :data:`_CHUNK` steps. Kept lean (a lockstep robot calls it for every action): it reads
+    back only the time. ``dt``: the model's timestep if the caller has it. Returns ``n``.
+
+    Divergence: MuJoCo checks every step's positions, velocities and accelerations and resets
+    the data when one is bad (not finite, or beyond ``mjMAXVAL``), so a block diverged when its
+    time went back; only at time 0 (a reset looks like the start) are the warnings read too.
+    The block is then stepped again by :func:`advance` from its start, which finds the last
+    good state and raises.
+
+    Raises:
+        SimulationDivergedError: as :func:`advance`.
+    """
+    if target is not None:
+        d.ctrl[arm_index(m).actuator] = target
+    s0 = np.empty(mujoco.mj_stateSize(m, _STATE_SPEC))
+    dt = dt or m.opt.timestep
+    done = 0
+    while done < n:
+        k = min(n - done, _CHUNK)
+        mujoco.mj_getState(m, d, s0, _STATE_SPEC)
+        t0 = float(s0[0])
+        at_start = t0 < dt
+        warned = _warnings(d) if at_start else 0
+        mujoco.mj_step(m, d, nstep=k)
+        if d.time < t0 + (k - 0.5) * dt or (at_start and _warnings(d) != warned):
+            mujoco.mj_setState(m, d, s0, _STATE_SPEC)
+            q = d.ctrl[arm_index(m).actuator].copy()
+            advance(m, d, np.broadcast_to(q, (k, len(q))), keep_trace=False)
+        done += k
+    return n
+
+
+def _warnings(d: mujoco.MjData) -> int:
+    return sum(d.warning[w].number for w in _DIVERGENCE_WARNINGS)
+
+
 def advance(
     m: mujoco.MjModel,
     d: mujoco.MjData,

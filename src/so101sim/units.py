@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -119,28 +120,42 @@ class ArmUnits:
         o[GRIPPER_INDEX] = self.lower[GRIPPER_INDEX]
         return o
 
+    @cached_property
+    def _gripper(self) -> tuple[float, float]:
+        """The gripper's (radians at 0, radians per unit): read once, the same numbers as
+        :attr:`offset` and :attr:`scale` (a conversion runs on every robot call)."""
+        return float(self.lower[GRIPPER_INDEX]), float(self.scale[GRIPPER_INDEX])
+
+    def joint_to_radians(self, index: int, value: float) -> float:
+        """One joint's value (arm units) -> radians, bit for bit as :meth:`to_radians`."""
+        if index == GRIPPER_INDEX:
+            low, per_unit = self._gripper
+            return low + value * per_unit
+        return math.radians(value)
+
     def to_radians(self, values: np.ndarray) -> np.ndarray:
         """Arm units (degrees, gripper 0–100) -> joint angles in radians."""
         v = np.asarray(values, dtype=float)
         out = np.radians(v)
-        out[..., GRIPPER_INDEX] = (
-            self.lower[GRIPPER_INDEX] + v[..., GRIPPER_INDEX] * self.scale[GRIPPER_INDEX]
-        )
+        low, per_unit = self._gripper
+        out[..., GRIPPER_INDEX] = low + v[..., GRIPPER_INDEX] * per_unit
         return out
 
     def from_radians(self, q: np.ndarray) -> np.ndarray:
         """Joint angles in radians -> arm units (degrees, gripper 0–100)."""
         q = np.asarray(q, dtype=float)
         out = np.degrees(q)
-        out[..., GRIPPER_INDEX] = (q[..., GRIPPER_INDEX] - self.lower[GRIPPER_INDEX]) / self.scale[
-            GRIPPER_INDEX
-        ]
+        low, per_unit = self._gripper
+        out[..., GRIPPER_INDEX] = (q[..., GRIPPER_INDEX] - low) / per_unit
         return out
 
-    @property
+    @cached_property
     def limits(self) -> tuple[np.ndarray, np.ndarray]:
-        """(lower, upper) limits in the arm's units: degrees, and 0..100 for the gripper."""
-        return self.from_radians(self.lower), self.from_radians(self.upper)
+        """(lower, upper) limits in the arm's units: degrees, and 0..100 for the gripper
+        (computed once; read-only arrays)."""
+        lo, hi = self.from_radians(self.lower), self.from_radians(self.upper)
+        lo.flags.writeable = hi.flags.writeable = False
+        return lo, hi
 
     def limits_dict(self) -> dict[str, tuple[float, float]]:
         """Joint name -> (lower, upper) in the arm's units."""

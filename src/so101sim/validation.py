@@ -162,6 +162,9 @@ def check_count(
     """A whole number (int or NumPy integer, not bool) in ``minimum..maximum`` (even if asked).
     ``unit`` names what is counted (``" steps"``); ``expected`` replaces the generated
     description of the valid values."""
+    fits = type(value) is int and minimum <= value and (maximum is None or value <= maximum)
+    if fits and not (even and value % 2):
+        return value  # type: ignore[return-value]  # the common case, no message composed
     if expected is None:
         top = f" and <= {maximum}" if maximum is not None else ""
         what_of = f" of{unit}" if unit else ""
