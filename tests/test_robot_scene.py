@@ -61,7 +61,7 @@ def test_the_registry_holds_connected_followers_and_tells_listeners():
         stop()
         robot.disconnect()
     assert robot not in connected_followers()
-    with pytest.raises(DeviceNotConnectedError, match="--robot.scene=pick_cube"):
+    with pytest.raises(DeviceNotConnectedError, match=r"--robot\.scene=pick_cube"):
         find_follower("pick_cube")
     robot.connect()  # no listener any more
     robot.disconnect()
