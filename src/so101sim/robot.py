@@ -59,6 +59,7 @@ from typing import Any
 
 import numpy as np
 
+from . import robot_scene
 from .errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, RobotConfigError
 from .robot_actions import JOINT_INDEX, clamp_relative, clip_to_limits, parse_action
 from .robot_cameras import CameraRig, SimCamera, scene_model
@@ -204,6 +205,7 @@ class SO101SimFollower:
         self._finalizer = runner.tie_to(self)  # stopped at exit, or when the robot is collected
         self._runner = runner
         self._connected = True
+        robot_scene.register(self)  # teleoperators that drive its scene find it there
         log.info("%s connected.", self)
 
     def calibrate(self) -> None:
@@ -233,6 +235,7 @@ class SO101SimFollower:
             SimulationDivergedError: the physics became unstable.
         """
         self._check_connected()
+        robot_scene.before_observation(self)  # a scene reset asked for between takes
         with self._lock:
             values = self._sim.pose_array().tolist()
             # LeRobot clamps the gripper's reading to its calibrated range (0..100)
@@ -290,6 +293,7 @@ class SO101SimFollower:
             self._finalizer()  # stops the threads and removes the exit hook, once
             self._finalizer = None
         self._connected = False
+        robot_scene.unregister(self)
         log.info("%s disconnected.", self)
 
     # ------------------------------------------------------------------ sim extras

@@ -3,7 +3,9 @@
 - ``--robot.type=so101_sim``: :class:`SO101SimConfig` (the simulated SO-101 follower);
 - ``--robot.cameras='{front: {type: so101_sim}}'``: :class:`SO101SimCameraConfig` (a camera of
   that robot's scene; the dict key names it: ``front`` and ``wrist`` are presets);
-- ``--teleop.type=so101_sim_motion``: :class:`SO101SimMotionConfig` (plays a motion file).
+- ``--teleop.type=so101_sim_motion``: :class:`SO101SimMotionConfig` (plays a motion file);
+- ``--teleop.type=so101_sim_expert``: :class:`SO101SimExpertConfig` (a task's scripted expert
+  on the ``so101_sim`` robot's scene).
 
 LeRobot finds each device class by name, ``FooConfig`` -> ``Foo``, in this module's package.
 Every value is checked when the config is made (so a bad command line fails before anything
@@ -24,12 +26,17 @@ from so101sim.model import arm_units, load_model
 from so101sim.motionfile import load_motion
 from so101sim.robot import SO101SimFollowerConfig
 from so101sim.units import STARTING_POSE
-from so101sim.validation import check_range
+from so101sim.validation import check_choice, check_count, check_range
 
 ROBOT_TYPE = "so101_sim"
 """``--robot.type``, and the robot's ``name``: the ``robot_type`` stored in its datasets."""
 CAMERA_TYPE = "so101_sim"
 MOTION_TELEOP_TYPE = "so101_sim_motion"
+EXPERT_TELEOP_TYPE = "so101_sim_expert"
+EXPERT_TASKS = {"pick_cube": 8.0, "cube_to_bowl": 12.0}
+"""The scripted experts' tasks (each also a ``--robot.scene`` preset) and their time limits
+(seconds, those of ``so101sim/PickCube-v0`` and ``so101sim/CubeToBowl-v0``)."""
+MAX_EPISODE_S = 3600.0
 MAX_FPS = 1000
 
 
@@ -169,11 +176,68 @@ class SO101SimMotionConfig(TeleoperatorConfig):
             load_motion(self.motion, units=arm_units(load_model(self.model)))
 
 
+@TeleoperatorConfig.register_subclass(EXPERT_TELEOP_TYPE)
+@dataclass(kw_only=True)
+class SO101SimExpertConfig(TeleoperatorConfig):
+    """A task's scripted expert as the teleoperator (``--teleop.type=so101_sim_expert``): it
+    drives the ``so101_sim`` robot whose scene is the task's (``--robot.scene=<task>``,
+    ``--robot.mode=lockstep``), planning from the objects' real poses in that robot's
+    simulation.
+
+    One *take* is one run of the expert from a new start: the arm at its start pose and the
+    objects at poses drawn from ``seed + take`` (as ``so101sim/PickCube-v0``'s
+    ``reset(seed=seed + take)`` draws them). A take lasts ``(episode_time_s + reset_time_s) *
+    fps`` calls of ``get_action()``: give ``--dataset.episode_time_s``,
+    ``--dataset.reset_time_s`` and ``--dataset.fps`` (the same numbers), and each recorded
+    episode is one take.
+    """
+
+    task: str = "pick_cube"
+    """``pick_cube`` or ``cube_to_bowl``: also the robot's ``--robot.scene``."""
+    seed: int = 0
+    """Take ``k`` draws its start from ``seed + k``."""
+    fps: int = 30
+    """The loop's rate (``--dataset.fps``): the expert moves on ``1/fps`` s per call."""
+    episode_time_s: float | None = None
+    """``--dataset.episode_time_s``; None: the task's time limit (8 s, 12 s)."""
+    reset_time_s: float = 0.0
+    """``--dataset.reset_time_s``: its calls belong to the take before it (the expert holds
+    still). 0 is recommended."""
+
+    def __post_init__(self) -> None:
+        check_choice(self.task, "task", EXPERT_TASKS, error=RobotConfigError)
+        self.seed = check_count(self.seed, "seed", maximum=2**62, error=RobotConfigError)
+        self.fps = check_fps(self.fps)
+        if self.episode_time_s is None:
+            self.episode_time_s = EXPERT_TASKS[self.task]
+        self.episode_time_s = check_range(
+            self.episode_time_s, "episode_time_s", low=0.0, high=MAX_EPISODE_S, low_open=True,
+            unit=" s", error=RobotConfigError,
+        )  # fmt: skip
+        self.reset_time_s = check_range(
+            self.reset_time_s, "reset_time_s", low=0.0, high=MAX_EPISODE_S, unit=" s",
+            error=RobotConfigError,
+        )  # fmt: skip
+        if self.take_calls < 1:
+            raise RobotConfigError(
+                f"episode_time_s + reset_time_s = {self.episode_time_s + self.reset_time_s:g} s "
+                f"at {self.fps} fps is less than one frame; expected at least 1/fps"
+            )
+
+    @property
+    def take_calls(self) -> int:
+        """Calls of ``get_action()`` in one take: ``(episode_time_s + reset_time_s) * fps``."""
+        return round((float(self.episode_time_s or 0.0) + self.reset_time_s) * self.fps)
+
+
 __all__ = [
     "CAMERA_TYPE",
+    "EXPERT_TASKS",
+    "EXPERT_TELEOP_TYPE",
     "MOTION_TELEOP_TYPE",
     "ROBOT_TYPE",
     "SO101SimCameraConfig",
     "SO101SimConfig",
+    "SO101SimExpertConfig",
     "SO101SimMotionConfig",
 ]

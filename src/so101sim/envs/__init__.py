@@ -31,7 +31,16 @@ from .run import (
     run_episode,
     run_expert,
 )
-from .tasks import LIFT_SUCCESS_M, CubeToBowlEnv, PickCubeEnv
+from .scene_state import SceneState, SimTask
+from .tasks import (
+    LIFT_SUCCESS_M,
+    SIM_TASKS,
+    CubeToBowlEnv,
+    CubeToBowlTask,
+    PickCubeEnv,
+    PickCubeTask,
+    sim_task,
+)
 
 ENTRY_POINTS = {
     "so101sim/PickCube-v0": "so101sim.envs.tasks:PickCubeEnv",
@@ -53,17 +62,22 @@ __all__ = [
     "ENTRY_POINTS",
     "LIFT_SUCCESS_M",
     "REWARD_MODES",
+    "SIM_TASKS",
     "TASKS",
     "ActionMap",
     "ControlSettings",
     "CubeToBowlEnv",
     "CubeToBowlExpert",
+    "CubeToBowlTask",
     "EpisodeResult",
     "Evaluation",
     "ExpertScore",
     "PickCubeEnv",
     "PickCubeExpert",
+    "PickCubeTask",
+    "SceneState",
     "ScriptedExpert",
+    "SimTask",
     "So101TaskEnv",
     "env_id",
     "evaluate_expert",
@@ -72,4 +86,5 @@ __all__ = [
     "register_envs",
     "run_episode",
     "run_expert",
+    "sim_task",
 ]

@@ -41,7 +41,6 @@ from ..scenes import (
     VisualRandomizer,
     build_scene,
     camera,
-    object_qpos,
     place_objects,
     preset_scene,
     sample_placements,
@@ -51,6 +50,7 @@ from ..units import JOINT_NAMES, LIMIT_TOLERANCE, STARTING_POSE, Pose
 from ..validation import check_choice, check_count, check_range
 from .actions import ActionMap, ControlSettings
 from .grasp import limit_gripper
+from .scene_state import SceneState
 
 REWARD_MODES = ("dense", "sparse")
 _DIVERGENCE = np.array(
@@ -65,9 +65,6 @@ MAX_SPEED = 1e4
 """Joint speeds in ``agent_vel`` are clipped to this (arm units per second)."""
 MAX_DISTANCE_M = 10.0
 """Object positions in ``environment_state`` are clipped to this (metres)."""
-GRIP_OFFSET_M = 0.014
-"""From the tip (on the fixed jaw's face) to the middle of a 2.5 cm grasp, along the tool's z
-axis: the point the dense rewards bring to the object."""
 
 
 @dataclass(frozen=True)
@@ -80,7 +77,7 @@ class Evaluation:
     details: dict[str, float] = field(default_factory=dict)
 
 
-class So101TaskEnv(gym.Env):
+class So101TaskEnv(SceneState, gym.Env):
     """A table-top task for the SO-101 (see the module's text). Subclasses name the scene
     preset and say how the task is judged (:meth:`evaluate`)."""
 
@@ -158,14 +155,7 @@ class So101TaskEnv(gym.Env):
         self._viewer_stack: contextlib.ExitStack | None = None
         self._viewer: Any = None
         self._steps = 0
-        self._start: dict[str, np.ndarray] = {}
-        self._pads = [_geom(self.model, n) for n in ("fixed_jaw_pad", "moving_jaw_pad")]
-        self._qpos = {o.name: object_qpos(self.model, o.name) for o in self.scene.objects}
-        self._bodies = {
-            o.name: mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, o.name)
-            for o in self.scene.objects
-        }
-        self._tip_site = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, "gripperframe")
+        SceneState.__init__(self, self.model, self.sim, self.scene)  # objects, pads, tip
         self._scale = self.sim.units.scale  # radians per arm unit
 
     # -- set-up
@@ -243,7 +233,7 @@ class So101TaskEnv(gym.Env):
         self.actions.reset(self.sim.commanded_array())
         self._jitter()
         self._steps = 0
-        self._start = {o.name: self.object_pose(o.name) for o in self.scene.objects}
+        self.remember_start()
         ev = self.evaluate()
         if self.render_mode == "human":
             self.render()
@@ -313,38 +303,7 @@ class So101TaskEnv(gym.Env):
             self._viewer_stack.close()
             self._viewer_stack, self._viewer = None, None
 
-    # -- state the tasks and experts read
-    def object_pose(self, name: str) -> np.ndarray:
-        """Object ``name``'s pose now: (x, y, z, qw, qx, qy, qz)."""
-        return self.sim.data.qpos[self._qpos[name]].copy()
-
-    def start_pose(self, name: str) -> np.ndarray:
-        """Object ``name``'s pose at the start of the episode."""
-        return self._start[name]
-
-    def grip_centre(self) -> np.ndarray:
-        """The point between the jaws a 2.5 cm object is held at (metres, world frame)."""
-        d = self.sim.data
-        rot = d.site_xmat[self._tip_site].reshape(3, 3)
-        return d.site_xpos[self._tip_site] + GRIP_OFFSET_M * rot[:, 2]
-
-    def touching(self, name: str) -> tuple[bool, bool]:
-        """Whether the fixed and the moving jaw's pads touch object ``name``."""
-        d = self.sim.data
-        if d.ncon == 0:
-            return False, False
-        bodies = self.model.geom_bodyid[d.contact.geom[: d.ncon]]  # (ncon, 2)
-        geoms = d.contact.geom[: d.ncon]
-        on_object = (bodies == self._bodies[name]).any(axis=1)
-        fixed, moving = self._pads
-        return bool((on_object & (geoms == fixed).any(axis=1)).any()), bool(
-            (on_object & (geoms == moving).any(axis=1)).any()
-        )
-
-    def grasped(self, name: str) -> bool:
-        """Both jaws' pads touch object ``name``."""
-        return all(self.touching(name))
-
+    # -- the task (object poses, contacts: SceneState)
     def evaluate(self) -> Evaluation:
         """How the task stands (subclasses)."""
         raise NotImplementedError
@@ -385,10 +344,3 @@ def _size(value: object, what: str) -> tuple[int, int]:
         check_count(v, what, minimum=16, maximum=4096, even=True, unit=" pixels") for v in (h, w)
     )
     return dims  # type: ignore[return-value]
-
-
-def _geom(model: mujoco.MjModel, name: str) -> int:
-    gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
-    if gid < 0:
-        raise SettingError(f"the scene has no geom {name!r}; expected a scene with objects")
-    return int(gid)

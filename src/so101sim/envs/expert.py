@@ -26,7 +26,6 @@ from typing import Any
 import numpy as np
 
 from ..errors import SettingError, UnreachableError
-from .base import So101TaskEnv
 from .grasp import GRASP_Z_M, LIFT_Z_M
 from .planning import (
     CLOSED_GRIPPER,
@@ -37,7 +36,8 @@ from .planning import (
     pose_at,
     top_grasp,
 )
-from .tasks import CubeToBowlEnv, PickCubeEnv
+from .scene_state import SceneState
+from .tasks import CubeToBowlTask, PickCubeTask
 
 log = logging.getLogger(__name__)
 
@@ -71,9 +71,12 @@ class ScriptedExpert:
 
     def __init__(self, env: Any) -> None:
         inner = getattr(env, "unwrapped", env)
-        if not isinstance(inner, So101TaskEnv):
-            raise SettingError(f"{env!r} is not an so101sim task environment")
-        self.env: So101TaskEnv = inner
+        if not isinstance(inner, SceneState) or not hasattr(inner, "actions"):
+            raise SettingError(
+                f"{env!r} is not an so101sim task environment; expected one, or a task on a "
+                "simulation (so101sim.envs.tasks.sim_task)"
+            )
+        self.env: Any = inner  # So101TaskEnv or SimTask: control_hz, actions, the scene state
         self.reset()
 
     def reset(self) -> None:
@@ -217,13 +220,14 @@ class CubeToBowlExpert(ScriptedExpert):
 
 
 EXPERTS: dict[type, Callable[[Any], ScriptedExpert]] = {
-    PickCubeEnv: PickCubeExpert,
-    CubeToBowlEnv: CubeToBowlExpert,
+    PickCubeTask: PickCubeExpert,
+    CubeToBowlTask: CubeToBowlExpert,
 }
 
 
 def expert_for(env: Any) -> ScriptedExpert:
-    """The scripted expert of ``env``'s task (a Gymnasium env, wrapped or not)."""
+    """The scripted expert of ``env``'s task (a Gymnasium env, wrapped or not, or a task on a
+    simulation stepped elsewhere: :func:`so101sim.envs.tasks.sim_task`)."""
     inner = getattr(env, "unwrapped", env)
     for cls, make in EXPERTS.items():
         if isinstance(inner, cls):

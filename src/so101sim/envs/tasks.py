@@ -18,10 +18,14 @@ from __future__ import annotations
 
 import math
 
+import mujoco
 import numpy as np
 
-from ..scenes import object_qvel
+from ..errors import SettingError
+from ..scenes import SCENE_PRESETS, TableScene, object_qvel
+from ..simulation import Simulation
 from .base import Evaluation, So101TaskEnv
+from .scene_state import SceneState, SimTask
 
 LIFT_SUCCESS_M = 0.03
 """How high the cube's centre must rise for PickCube to succeed (metres)."""
@@ -33,13 +37,13 @@ SETTLED_SPEED = 0.05
 """The cube counts as in the bowl once it moves slower than this (m/s)."""
 
 
-class PickCubeEnv(So101TaskEnv):
-    """Pick up the 2.5 cm cube and hold it at least 3 cm above the table."""
+class PickCubeTask(SceneState):
+    """Pick up the 2.5 cm cube and hold it at least 3 cm above the table: the success test,
+    for the environment and for a simulation stepped elsewhere (:func:`sim_task`)."""
 
     scene_name = "pick_cube"
     task = "pick_cube"
     task_description = "Pick up the red cube."
-    default_episode_seconds = 8.0
 
     def evaluate(self) -> Evaluation:
         cube = self.object_pose("cube")
@@ -54,13 +58,12 @@ class PickCubeEnv(So101TaskEnv):
         return Evaluation(success=success, dense=dense, details=details)
 
 
-class CubeToBowlEnv(So101TaskEnv):
-    """Pick up the cube and put it in the bowl."""
+class CubeToBowlTask(SceneState):
+    """Pick up the cube and put it in the bowl: the success test (see :class:`PickCubeTask`)."""
 
     scene_name = "cube_to_bowl"
     task = "cube_to_bowl"
     task_description = "Put the red cube in the blue bowl."
-    default_episode_seconds = 12.0
 
     @property
     def _cube_dofs(self) -> slice:
@@ -87,3 +90,56 @@ class CubeToBowlEnv(So101TaskEnv):
         dense = 1.0 if success else (reach + float(grasped) + carry + float(inside)) / 5.0
         details = {"cube_to_bowl_m": offset, "grasped": float(grasped), "in_bowl": float(inside)}
         return Evaluation(success=success, dense=dense, details=details)
+
+
+class PickCubeEnv(PickCubeTask, So101TaskEnv):
+    """Pick up the 2.5 cm cube and hold it at least 3 cm above the table."""
+
+    default_episode_seconds = 8.0
+
+
+class CubeToBowlEnv(CubeToBowlTask, So101TaskEnv):
+    """Pick up the cube and put it in the bowl."""
+
+    default_episode_seconds = 12.0
+
+
+class PickCubeSimTask(PickCubeTask, SimTask):
+    """PickCube on a simulation stepped elsewhere (:func:`sim_task`)."""
+
+
+class CubeToBowlSimTask(CubeToBowlTask, SimTask):
+    """CubeToBowl on a simulation stepped elsewhere (:func:`sim_task`)."""
+
+
+SIM_TASKS: dict[str, type[SimTask]] = {
+    "pick_cube": PickCubeSimTask,
+    "cube_to_bowl": CubeToBowlSimTask,
+}
+"""The tasks by name (each is also its scene preset's name)."""
+
+
+def sim_task(
+    task: str, model: mujoco.MjModel, sim: Simulation, scene: TableScene, control_hz: float
+) -> SimTask:
+    """Task ``task`` (``pick_cube``, ``cube_to_bowl``) on ``sim``, a simulation of ``model``
+    compiled from ``scene`` that something else steps (e.g. the simulated follower in that
+    scene preset) ``control_hz`` times a simulated second: its ``evaluate()`` says whether the
+    task succeeded, and :func:`so101sim.envs.expert_for` gives its scripted expert. The
+    objects' poses now are the episode's start poses (``remember_start()`` takes them anew).
+
+    Raises:
+        SettingError: an unknown task (the message lists them), or a scene without the task's
+            objects.
+    """
+    cls = SIM_TASKS.get(task)
+    if cls is None:
+        raise SettingError(f"task = {task!r} is unknown; expected one of {', '.join(SIM_TASKS)}")
+    needed = {o.name for o in SCENE_PRESETS[task].objects}
+    missing = sorted(needed - {o.name for o in scene.objects})
+    if missing:
+        raise SettingError(
+            f"task {task!r} needs the object(s) {', '.join(missing)} in its scene; expected the "
+            f"{task!r} scene preset"
+        )
+    return cls(model, sim, scene, control_hz)

@@ -1,0 +1,239 @@
+"""``SO101SimExpert``: a task's scripted expert as a teleoperator
+(``--teleop.type=so101_sim_expert --teleop.task=pick_cube``), so ``lerobot-record`` records
+real demonstrations on the simulated arm.
+
+It drives the ``so101_sim`` robot with the task's scene (``--robot.scene=pick_cube``,
+``--robot.mode=lockstep``): LeRobot gives a teleoperator no handle on the robot, so it finds
+the robot's :class:`~so101sim.robot.SO101SimFollower` in so101sim's registry of connected
+followers (:mod:`so101sim.robot_scene`): the one that connects after it (``lerobot-record``
+connects the teleoperator first), or one already connected, at the latest on the first
+``get_action()``. Each ``get_action()`` is the expert's next joint targets
+(``"<joint>.pos"``: degrees, gripper 0..100), planned from the arm's commanded targets and the
+objects' real poses in that robot's simulation (:func:`so101sim.envs.sim_task`,
+:func:`so101sim.envs.expert_for`).
+
+**Takes and episodes.** A take is one run of the expert from a new start: the arm at its start
+pose, the objects at poses drawn from ``seed + k`` for take ``k``. It lasts
+``config.take_calls`` = ``(episode_time_s + reset_time_s) * fps`` calls, counted as the motion
+teleoperator counts them (the calls of ``lerobot-record``'s reset period count too); at its
+last call the scene's reset is asked for, and the robot makes it before its next observation,
+so the next episode's first frame shows the next take's start. LeRobot ends an episode after
+``episode_time_s`` of wall-clock time, so an episode holds the whole take when its loop keeps
+up; when it does not (frames lost to a busy machine) and there is no reset period, a call
+that comes more than ``episode_time_s`` (and half a frame) after the take's first call starts
+the next take there (its first frame then still shows the end of the last take; a warning
+says so).
+
+``takes`` records each take (:class:`TakeRecord`: seed, start poses, calls, success, when);
+each is logged when it ends.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+from lerobot.teleoperators import Teleoperator
+
+from so101sim.envs import expert_for, sim_task
+from so101sim.envs.expert import ScriptedExpert
+from so101sim.envs.scene_state import SimTask
+from so101sim.errors import So101SimError
+from so101sim.robot_helpers import MOTOR_KEYS
+from so101sim.robot_scene import RobotScene, find_follower, robot_scene, when_connected
+
+from .config_so101sim import EXPERT_TELEOP_TYPE, SO101SimExpertConfig
+from .errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, lerobot_errors
+
+log = logging.getLogger(__name__)
+
+MODE = "lockstep"
+
+
+@dataclass
+class TakeRecord:
+    """One take of the expert: its start and how it went."""
+
+    index: int
+    seed: int
+    placements: dict[str, tuple[float, float, float]]
+    """The objects' start poses: x, y (metres), yaw (degrees)."""
+    calls: int = 0
+    success: bool = False
+    """The task succeeded at some call of the take."""
+    success_call: int | None = None
+    """The first call (from 0) whose state showed success."""
+    attempts: int = 0
+    """Grasps retried by the expert."""
+    cut_short: bool = False
+    """The take ended before its ``take_calls`` (the recording loop fell behind)."""
+    details: dict[str, float] = field(default_factory=dict)
+    """The task's figures at the take's last call (e.g. ``cube_rise_m``)."""
+
+
+class SO101SimExpert(Teleoperator):
+    """The scripted expert of a task as a teleoperator (see the module's documentation)."""
+
+    config_class = SO101SimExpertConfig
+    name = EXPERT_TELEOP_TYPE
+
+    def __init__(self, config: SO101SimExpertConfig) -> None:
+        super().__init__(config)
+        self.config = config
+        self.takes: list[TakeRecord] = []
+        """Every take so far, the one under way last."""
+        self._connected = False
+        self._follower: Any = None
+        self._scene: RobotScene | None = None
+        self._task: SimTask | None = None
+        self._expert: ScriptedExpert | None = None
+        self._stop_listening: Any = None
+        self._take = 0  # the take under way or next
+        self._running = False  # a take is under way
+        self._wall0 = 0.0
+
+    @property
+    def action_features(self) -> dict[str, type]:
+        return dict.fromkeys(MOTOR_KEYS, float)
+
+    @property
+    def feedback_features(self) -> dict[str, type]:
+        return {}
+
+    @property
+    def is_connected(self) -> bool:
+        return self._connected
+
+    @property
+    def is_calibrated(self) -> bool:
+        return True
+
+    def connect(self, calibrate: bool = True) -> None:
+        """Find the robot with the task's scene: connected already, or when it connects."""
+        if self._connected:
+            raise DeviceAlreadyConnectedError(f"{self} is already connected.")
+        self.takes, self._take, self._running = [], 0, False
+        self._follower = self._scene = self._task = self._expert = None
+        self._connected = True
+        try:
+            self._attach(find_follower(self.config.task, mode=MODE))
+        except So101SimError:  # not connected yet (LeRobot connects the teleoperator first)
+            self._stop_listening = when_connected(self._on_connect)
+
+    def calibrate(self) -> None:
+        """Nothing to calibrate."""
+
+    def configure(self) -> None:
+        """Nothing to configure."""
+
+    def get_action(self) -> dict[str, float]:
+        """The expert's next joint targets (degrees; gripper 0..100) for the robot's scene.
+
+        Raises:
+            DeviceNotConnectedError: not connected, or no connected ``so101_sim`` robot has
+                the task's scene (so101sim's message says what to pass).
+            RobotConfigError: that robot is not in lockstep mode.
+        """
+        if not self._connected:
+            raise DeviceNotConnectedError(f"{self} is not connected. Run `.connect()` first.")
+        if self._follower is None:
+            with lerobot_errors():
+                self._attach(find_follower(self.config.task, mode=MODE))
+        now = time.perf_counter()
+        if self._running and self._fell_behind(now):
+            self._end_take(cut_short=True)
+        scene, task, expert = self._scene, self._task, self._expert
+        assert scene is not None and task is not None and expert is not None
+        scene.apply_pending()  # the robot made it already if it observed since
+        if not self._running:
+            self._start_take(now)
+        record = self.takes[-1]
+        with self._follower.lock:
+            target = expert.act()
+            ev = task.evaluate()
+        if ev.success and not record.success:
+            record.success, record.success_call = True, record.calls
+        record.calls += 1
+        record.attempts, record.details = expert.attempts, dict(ev.details)
+        if record.calls >= self.config.take_calls:
+            self._end_take(cut_short=False)
+        return dict(zip(MOTOR_KEYS, (float(v) for v in target), strict=True))
+
+    def send_feedback(self, feedback: dict[str, Any]) -> None:
+        """Ignored: the expert reads the simulation itself."""
+
+    def disconnect(self) -> None:
+        if not self._connected:
+            raise DeviceNotConnectedError(f"{self} is not connected.")
+        if self._stop_listening is not None:
+            self._stop_listening()
+            self._stop_listening = None
+        if self._running:
+            self._end_take(cut_short=True, reset=False)
+        self._connected = False
+
+    # ------------------------------------------------------------------ internals
+    def _on_connect(self, follower: Any) -> None:
+        """A follower connected: take it if it has the task's scene (and the teleoperator
+        has none yet); the first take's reset is then made before its first observation."""
+        config = follower.config
+        if self._follower is None and config.scene == self.config.task and config.mode == MODE:
+            self._attach(follower)
+
+    def _attach(self, follower: Any) -> None:
+        scene = robot_scene(follower)
+        sim = follower.simulation
+        self._task = sim_task(self.config.task, sim.model, sim, scene.scene, self.config.fps)
+        self._expert = expert_for(self._task)
+        self._follower, self._scene = follower, scene
+        scene.request_reset(self._seed(self._take))
+        if self._stop_listening is not None:
+            self._stop_listening()
+            self._stop_listening = None
+        log.info("%s drives %s (scene %s)", self, follower, scene.name)
+
+    def _seed(self, take: int) -> int:
+        return self.config.seed + take
+
+    def _fell_behind(self, now: float) -> bool:
+        """LeRobot's loop has started a new episode although the take is not over: only
+        knowable without a reset period (see the module's documentation)."""
+        late = self.config.episode_time_s + 0.5 / self.config.fps  # type: ignore[operator]
+        return self.config.reset_time_s == 0 and now - self._wall0 > late
+
+    def _start_take(self, now: float) -> None:
+        scene, task, expert = self._scene, self._task, self._expert
+        assert scene is not None and task is not None and expert is not None
+        task.remember_start()
+        expert.reset()
+        self.takes.append(TakeRecord(self._take, self._seed(self._take), dict(scene.placements)))
+        self._running, self._wall0 = True, now
+
+    def _end_take(self, *, cut_short: bool, reset: bool = True) -> None:
+        """The take under way is over: log it; ask for the next take's reset."""
+        record = self.takes[-1]
+        record.cut_short = cut_short
+        self._running = False
+        self._take += 1
+        if reset and self._scene is not None:
+            self._scene.request_reset(self._seed(self._take))
+        if cut_short and reset:
+            log.warning(
+                "%s: take %d ended after %d of %d calls: the recording loop fell behind and "
+                "LeRobot started a new episode (its first frame shows the last take's end)",
+                self, record.index, record.calls, self.config.take_calls,
+            )  # fmt: skip
+        how = (
+            f"success at call {record.success_call} ({record.success_call / self.config.fps:.2f} s)"
+            if record.success and record.success_call is not None
+            else "no success"
+        )
+        log.info(
+            "%s: take %d (seed %d): %s, %d calls, %d grasp(s) retried",
+            self, record.index, record.seed, how, record.calls, record.attempts,
+        )  # fmt: skip
+
+
+__all__ = ["SO101SimExpert", "TakeRecord"]

@@ -1,0 +1,202 @@
+"""The scripted-expert teleoperator (``--teleop.type=so101_sim_expert``) in process and through
+``lerobot-record``: takes that start from new placements, aligned with LeRobot's episodes, and
+recorded actions that pick the cube up (replayed in ``so101sim/PickCube-v0`` from the same
+seeds)."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+from lerobot.robots import make_robot_from_config
+from lerobot.teleoperators import TeleoperatorConfig, make_teleoperator_from_config
+from lerobot.utils import errors as lerobot_errors
+from lerobot.utils.import_utils import register_third_party_plugins
+from lerobot_robot_so101sim import SO101SimConfig, SO101SimExpert, SO101SimExpertConfig
+from test_cli import QUIET, run, tool
+
+from so101sim import errors as sim_errors
+from so101sim.envs import PickCubeEnv
+from so101sim.units import STARTING_POSE
+
+FPS = 30
+EPISODE_S = 5
+FRAMES = EPISODE_S * FPS
+EPISODES = 5
+KEYS = [f"{j}.pos" for j in STARTING_POSE]
+START = np.array(list(STARTING_POSE.values()))
+REPO_ID = "local/so101_sim_expert"
+
+
+def robot(mode: str = "lockstep"):
+    return make_robot_from_config(SO101SimConfig(mode=mode, scene="pick_cube"))
+
+
+def expert(**kw) -> SO101SimExpert:
+    config = SO101SimExpertConfig(task="pick_cube", episode_time_s=EPISODE_S, **kw)
+    return make_teleoperator_from_config(config)  # type: ignore[return-value]
+
+
+def state(obs: dict) -> np.ndarray:
+    return np.array([obs[k] for k in KEYS])
+
+
+# ---------------------------------------------------------------------------- in process
+def test_the_expert_teleoperator_is_registered_and_checks_its_fields():
+    register_third_party_plugins()
+    assert TeleoperatorConfig.get_choice_class("so101_sim_expert") is SO101SimExpertConfig
+    assert SO101SimExpertConfig().episode_time_s == 8.0
+    assert SO101SimExpertConfig(task="cube_to_bowl").episode_time_s == 12.0
+    assert SO101SimExpertConfig(episode_time_s=5, reset_time_s=1, fps=10).take_calls == 60
+    with pytest.raises(sim_errors.RobotConfigError, match="pick_cube, cube_to_bowl"):
+        SO101SimExpertConfig(task="stack")
+    with pytest.raises(sim_errors.RobotConfigError, match="seed"):
+        SO101SimExpertConfig(seed=-1)
+    with pytest.raises(sim_errors.RobotConfigError, match="episode_time_s"):
+        SO101SimExpertConfig(episode_time_s=0)
+
+
+def test_takes_start_anew_before_their_first_observation_and_pick_the_cube():
+    """As lerobot-record does it: the teleoperator connects first, then the robot; each loop
+    observes, asks the teleoperator, sends the action. Two takes of 5 s."""
+    teleop, arm = expert(seed=10), robot()
+    teleop.connect()
+    arm.connect()
+    try:
+        firsts, actions = [], []
+        for k in range(2 * FRAMES):
+            obs = arm.get_observation()
+            if k % FRAMES == 0:
+                firsts.append(state(obs))
+            action = teleop.get_action()
+            actions.append([action[key] for key in KEYS])
+            arm.send_action(action)
+    finally:
+        teleop.disconnect()
+        arm.disconnect()
+    takes = teleop.takes
+    assert [(t.index, t.seed, t.calls) for t in takes] == [(0, 10, FRAMES), (1, 11, FRAMES)]
+    assert all(t.success and not t.cut_short and t.attempts == 0 for t in takes)
+    assert all(t.details["cube_rise_m"] > 0.03 for t in takes)
+    assert takes[0].placements != takes[1].placements
+    for first in firsts:  # the arm back at its start pose when each take's first frame is taken
+        np.testing.assert_allclose(first, START, atol=0.5)
+    a = np.array(actions)
+    assert np.abs(a[:FRAMES] - a[FRAMES:]).max() > 5  # another placement, another demonstration
+
+
+def test_the_expert_finds_a_robot_connected_before_it_and_says_what_is_missing():
+    arm = robot()
+    arm.connect()
+    try:
+        teleop = expert()
+        teleop.connect()
+        arm.get_observation()  # the first take's reset is made here
+        teleop.get_action()
+        assert teleop.takes[0].placements["cube"][:2] != pytest.approx((0.19, 0.08))
+        teleop.disconnect()
+    finally:
+        arm.disconnect()
+    lonely = expert()
+    lonely.connect()
+    with pytest.raises(lerobot_errors.DeviceNotConnectedError, match=r"--robot\.scene=pick_cube"):
+        lonely.get_action()
+    realtime = robot(mode="realtime")
+    realtime.connect()
+    try:
+        with pytest.raises(sim_errors.RobotConfigError, match=r"--robot\.mode=lockstep"):
+            lonely.get_action()
+    finally:
+        realtime.disconnect()
+        lonely.disconnect()
+    with pytest.raises(lerobot_errors.DeviceNotConnectedError):
+        lonely.get_action()
+
+
+def test_a_loop_that_fell_behind_starts_the_next_take_at_lerobots_next_episode(monkeypatch):
+    """LeRobot ends an episode after episode_time_s of wall-clock time: a call that comes later
+    than that after the take's first call is the next episode's first (no reset period)."""
+    import lerobot_robot_so101sim.expert as module
+
+    clock = [100.0]
+    monkeypatch.setattr(module.time, "perf_counter", lambda: clock[0])
+    teleop, arm = expert(seed=3), robot()
+    teleop.connect()
+    arm.connect()
+    try:
+        for _ in range(10):
+            arm.send_action(teleop.get_action())
+            clock[0] += 1 / FPS
+        clock[0] += EPISODE_S  # the loop fell behind; LeRobot saved the episode
+        first = arm.get_observation()
+        teleop.get_action()
+        takes = [(t.index, t.calls, t.cut_short) for t in teleop.takes]
+        assert takes == [(0, 10, True), (1, 1, False)]
+        assert state(first)[1] != pytest.approx(STARTING_POSE["shoulder_lift"], abs=0.01)
+        assert teleop.takes[1].seed == 4 and arm.follower.goal() == pytest.approx(
+            {k: v for k, v in zip(KEYS, START, strict=True)}, abs=1.0
+        )
+    finally:
+        teleop.disconnect()
+        arm.disconnect()
+
+
+# ---------------------------------------------------------------------------- lerobot-record
+@pytest.mark.cli
+def test_lerobot_record_with_the_expert_records_five_pick_demonstrations(tmp_path):
+    from lerobot.datasets import LeRobotDataset
+
+    root = tmp_path / "expert"
+    out = run(
+        [
+            tool("lerobot-record"), "--robot.type=so101_sim", "--robot.mode=lockstep",
+            "--robot.scene=pick_cube", "--teleop.type=so101_sim_expert",
+            "--teleop.task=pick_cube", f"--teleop.episode_time_s={EPISODE_S}",
+            f"--dataset.repo_id={REPO_ID}", f"--dataset.root={root}",
+            "--dataset.single_task=Pick up the red cube.",
+            f"--dataset.num_episodes={EPISODES}", f"--dataset.episode_time_s={EPISODE_S}",
+            "--dataset.reset_time_s=0", f"--dataset.fps={FPS}", "--dataset.push_to_hub=false",
+            "--display_data=false", *QUIET,
+        ],
+        tmp_path / "record.log",
+    )  # fmt: skip
+    info = json.loads((root / "meta" / "info.json").read_text())
+    assert info["total_episodes"] == EPISODES and info["robot_type"] == "so101_sim"
+    ds = LeRobotDataset(REPO_ID, root=root)
+    data = ds.hf_dataset.with_format("numpy")
+    episode = np.asarray(data["episode_index"])
+    states = np.stack(data["observation.state"])
+    actions = np.stack(data["action"])
+    counts = np.bincount(episode, minlength=EPISODES)
+    # frames follow LeRobot's wall clock: a loop that keeps up records every one of them
+    assert len(counts) == EPISODES and all(FRAMES // 2 < c <= FRAMES for c in counts), counts
+    logged = re.findall(r"take (\d+) \(seed (\d+)\): success at call (\d+)", out)
+    assert [int(t) for t, _, _ in logged] == list(range(EPISODES)), out[-3000:]
+    firsts = [actions[episode == e][:40] for e in range(EPISODES)]
+    for e in range(EPISODES):
+        ep_states = states[episode == e]
+        np.testing.assert_allclose(ep_states[0], START, atol=0.5)  # a new take's start
+        for other in range(e):  # another placement: another demonstration
+            assert np.abs(firsts[e] - firsts[other]).max() > 2.0
+        replay_succeeds(actions[episode == e], ep_states, seed=e)
+
+
+def replay_succeeds(actions: np.ndarray, states: np.ndarray, seed: int) -> None:
+    """The recorded actions, replayed from the take's seed in ``so101sim/PickCube-v0`` at the
+    dataset's rate, lift the cube, through the recorded states."""
+    env = PickCubeEnv(control_hz=FPS, terminate_on_success=False, episode_seconds=60)
+    try:
+        obs, _ = env.reset(seed=seed)
+        success = False
+        worst = 0.0
+        for k, action in enumerate(actions):
+            if k < len(states):
+                worst = max(worst, float(np.abs(obs["agent_pos"] - states[k]).max()))
+            obs, _, _, _, info = env.step(action.astype(np.float32))
+            success = success or info["is_success"]
+        assert success, f"episode {seed}: the cube rose {info['cube_rise_m'] * 1000:.1f} mm"
+        assert worst < 0.05, f"episode {seed}: replayed states {worst:.3f} deg off the recorded"
+    finally:
+        env.close()
