@@ -36,8 +36,13 @@ RUN = [sys.executable, "-m", "so101sim", "run", "--headless"]
 IMPORT_MUJOCO = [sys.executable, "-c", "import mujoco"]
 
 
+# as on a user's machine: Python's bytecode cache on (pip compiles it at install)
+USER_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+
+
 def process(cmd: list[str], env: dict[str, str] | None = None) -> tuple[float, float]:
     """Wall seconds and peak RSS (MB) of one child process."""
+    env = USER_ENV if env is None else env
     t0 = time.perf_counter()
     child = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
     _pid, status, usage = os.wait4(child.pid, 0)
@@ -56,7 +61,7 @@ def startup(repeats: int) -> None:
         rows["import mujoco"].append(process(IMPORT_MUJOCO))
         rows["so101sim run"].append(process(RUN))
     with tempfile.TemporaryDirectory() as empty:
-        cold = process(RUN, env={**os.environ, "SO101SIM_CACHE_DIR": empty})
+        cold = process(RUN, env={**USER_ENV, "SO101SIM_CACHE_DIR": empty})
     med = {
         k: (statistics.median(w for w, _ in v), statistics.median(r for _, r in v))
         for k, v in rows.items()
