@@ -36,8 +36,11 @@ def test_no_display_is_a_clear_error(monkeypatch, sim):
     monkeypatch.setattr(sys, "platform", "linux")
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    with pytest.raises(ViewerError, match="--headless"), viewer.open_viewer(sim.model, sim.data):
+    with pytest.raises(ViewerError) as info, viewer.open_viewer(sim.model, sim.data):
         pass
+    # true for a command and for a script: both ways to go on are named
+    assert "--headless on so101sim's commands" in str(info.value)
+    assert "viewer=False in Python" in str(info.value)
 
 
 def test_macos_without_mjpython_says_exactly_what_to_do(monkeypatch, sim):

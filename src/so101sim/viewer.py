@@ -252,8 +252,9 @@ def _check_can_open(quality: str, mirror: bool) -> None:
         raise ViewerError(MACOS_MESSAGE)
     if not has_display():
         raise ViewerError(
-            "no display to open the viewer on (DISPLAY is not set); run headless "
-            "(--headless), or start a virtual display with `xvfb-run so101sim ...`"
+            "no display to open the viewer on (DISPLAY is not set); run without the viewer "
+            "(--headless on so101sim's commands, viewer=False in Python), or start a virtual "
+            "display: `xvfb-run so101sim ...` or `xvfb-run python your_script.py`"
         )
 
 
