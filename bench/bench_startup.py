@@ -121,33 +121,12 @@ def lockstep(ticks: int, rounds: int = 7) -> None:
 
 
 def preflight(count: int) -> None:
-    from bench_variants import raw_rollout, timed
+    from bench_variants import compare
 
-    from so101sim.model import scene_path
-    from so101sim.motionfile import lab_motion_path, load_motion
-    from so101sim.preflight_rollout import plan_motion, sensor_model
-    from so101sim.preflight_variants import check_variants
-    from so101sim.variants import sample_variants
+    from so101sim.motionfile import lab_motion_path
 
-    path = lab_motion_path()
-    motion = load_motion(path)
-    base = sensor_model(scene_path())
-    plan = plan_motion(base, motion.steps, motion.start, lines=motion.lines)
-    variants = sample_variants(count, 0)
     print(f"3. robust preflight of {count} lab variants against a raw rollout of them:")
-    rows = {}
-    for threads in (2, 1):
-        raw = timed(lambda: raw_rollout(base, plan, variants, threads))  # noqa: B023
-        robust = timed(lambda: check_variants(path, count=count, threads=threads))  # noqa: B023
-        rows[threads] = (raw, robust)
-        print(
-            f"   {threads} thread(s): raw rollout {raw:6.2f} s   robust preflight {robust:6.2f} s"
-            f"   ratio {robust / raw:.2f} (goal <= 1.15)"
-        )
-    print(
-        f"   scaling 1 -> 2 threads: raw {rows[1][0] / rows[2][0]:.2f}x,"
-        f" robust {rows[1][1] / rows[2][1]:.2f}x (cores: {os.cpu_count()})"
-    )
+    compare(count, lab_motion_path(), indent="   ")
 
 
 def main() -> None:

@@ -150,3 +150,22 @@ def test_the_scripted_expert_picks_the_cube_on_the_follower(seed):
                 succeeded_at = k
         assert succeeded_at is not None and task.grasped("cube")
         assert task.object_pose("cube")[2] - task.start_pose("cube")[2] > 0.03
+
+
+def test_the_observation_hook_runs_before_the_pending_reset_and_resets_are_counted():
+    with follower() as robot:
+        scene = robot_scene.robot_scene(robot)
+        assert robot_scene.scene_resets(robot) == 0
+        seen = []
+
+        def hook() -> None:  # e.g. a teleoperator that ends its take and asks for a reset
+            seen.append(scene.pending)
+            scene.request_reset(5)
+
+        scene.observation_hook = hook
+        robot.get_observation()
+        assert seen == [None]  # called first; the reset it asked for was made right after
+        assert robot_scene.scene_resets(robot) == 1 and scene.pending is None
+        assert scene.placements == draw_placements(scene.scene, 5)
+    with follower(scene=None) as plain:
+        assert robot_scene.scene_resets(plain) == 0  # no scene: never reset

@@ -121,11 +121,20 @@ def find_follower(scene: str, *, mode: str | None = None) -> Any:
     return follower
 
 
+def scene_resets(follower: Any) -> int:
+    """How many times ``follower``'s scene has been reset (0: never, or no scene yet): a
+    caller that keeps its own clock per take re-anchors it when this changes."""
+    scene = _scenes.get(follower)
+    return scene.resets if scene is not None else 0
+
+
 def before_observation(follower: Any) -> None:
     """Make the reset asked for on ``follower``'s scene, if any (called by the follower's
     ``get_observation`` before it reads the state)."""
     scene = _scenes.get(follower)
     if scene is not None:
+        if scene.observation_hook is not None:
+            scene.observation_hook()  # e.g. a teleoperator that ends its take here
         scene.apply_pending()
 
 
@@ -155,6 +164,9 @@ class RobotScene:
         self.resets = 0
         """How many resets were made."""
         self._pending: int | None = None
+        self.observation_hook: Callable[[], None] | None = None
+        """Called before each of the follower's observations, before a pending reset is made
+        (the expert teleoperator sees there that LeRobot began a new episode)."""
 
     @property
     def name(self) -> str:
@@ -224,6 +236,7 @@ __all__ = [
     "find_follower",
     "register",
     "robot_scene",
+    "scene_resets",
     "unregister",
     "when_connected",
 ]

@@ -19,10 +19,10 @@ teleoperator counts them (the calls of ``lerobot-record``'s reset period count t
 last call the scene's reset is asked for, and the robot makes it before its next observation,
 so the next episode's first frame shows the next take's start. LeRobot ends an episode after
 ``episode_time_s`` of wall-clock time, so an episode holds the whole take when its loop keeps
-up; when it does not (frames lost to a busy machine) and there is no reset period, a call
-that comes more than ``episode_time_s`` (and half a frame) after the take's first call starts
-the next take there (its first frame then still shows the end of the last take; a warning
-says so).
+up; when it does not (frames lost to a busy machine) and there is no reset period, the
+robot's first observation ``episode_time_s`` or more after the take's first one (LeRobot's
+next episode) ends the take there and makes the next take's reset before it reads the state,
+so that episode too starts at a new take's start (a warning says the take was cut short).
 
 ``takes`` records each take (:class:`TakeRecord`: seed, start poses, calls, success, when);
 each is logged when it ends.
@@ -35,8 +35,6 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from lerobot.teleoperators import Teleoperator
-
 from so101sim.envs import expert_for, sim_task
 from so101sim.envs.expert import ScriptedExpert
 from so101sim.envs.scene_state import SimTask
@@ -46,6 +44,7 @@ from so101sim.robot_scene import RobotScene, find_follower, robot_scene, when_co
 
 from .config_so101sim import EXPERT_TELEOP_TYPE, SO101SimExpertConfig
 from .errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, lerobot_errors
+from .leader import SimLeader
 
 log = logging.getLogger(__name__)
 
@@ -73,7 +72,7 @@ class TakeRecord:
     """The task's figures at the take's last call (e.g. ``cube_rise_m``)."""
 
 
-class SO101SimExpert(Teleoperator):
+class SO101SimExpert(SimLeader):
     """The scripted expert of a task as a teleoperator (see the module's documentation)."""
 
     config_class = SO101SimExpertConfig
@@ -93,40 +92,19 @@ class SO101SimExpert(Teleoperator):
         self._take = 0  # the take under way or next
         self._running = False  # a take is under way
         self._wall0 = 0.0
-
-    @property
-    def action_features(self) -> dict[str, type]:
-        return dict.fromkeys(MOTOR_KEYS, float)
-
-    @property
-    def feedback_features(self) -> dict[str, type]:
-        return {}
-
-    @property
-    def is_connected(self) -> bool:
-        return self._connected
-
-    @property
-    def is_calibrated(self) -> bool:
-        return True
+        self._obs_wall0: float | None = None  # the wall time of the next take's first observation
 
     def connect(self, calibrate: bool = True) -> None:
         """Find the robot with the task's scene: connected already, or when it connects."""
         if self._connected:
             raise DeviceAlreadyConnectedError(f"{self} is already connected.")
-        self.takes, self._take, self._running = [], 0, False
+        self.takes, self._take, self._running, self._obs_wall0 = [], 0, False, None
         self._follower = self._scene = self._task = self._expert = None
         self._connected = True
         try:
             self._attach(find_follower(self.config.task, mode=MODE))
         except So101SimError:  # not connected yet (LeRobot connects the teleoperator first)
             self._stop_listening = when_connected(self._on_connect)
-
-    def calibrate(self) -> None:
-        """Nothing to calibrate."""
-
-    def configure(self) -> None:
-        """Nothing to configure."""
 
     def get_action(self) -> dict[str, float]:
         """The expert's next joint targets (degrees; gripper 0..100) for the robot's scene.
@@ -142,8 +120,8 @@ class SO101SimExpert(Teleoperator):
             with lerobot_errors():
                 self._attach(find_follower(self.config.task, mode=MODE))
         now = time.perf_counter()
-        if self._running and self._fell_behind(now):
-            self._end_take(cut_short=True)
+        if self._running and self._fell_behind(now, late=0.5 / self.config.fps):
+            self._end_take(cut_short=True)  # no observation told (a loop that does not observe)
         scene, task, expert = self._scene, self._task, self._expert
         assert scene is not None and task is not None and expert is not None
         scene.apply_pending()  # the robot made it already if it observed since
@@ -161,9 +139,6 @@ class SO101SimExpert(Teleoperator):
             self._end_take(cut_short=False)
         return dict(zip(MOTOR_KEYS, (float(v) for v in target), strict=True))
 
-    def send_feedback(self, feedback: dict[str, Any]) -> None:
-        """Ignored: the expert reads the simulation itself."""
-
     def disconnect(self) -> None:
         if not self._connected:
             raise DeviceNotConnectedError(f"{self} is not connected.")
@@ -172,6 +147,8 @@ class SO101SimExpert(Teleoperator):
             self._stop_listening = None
         if self._running:
             self._end_take(cut_short=True, reset=False)
+        if self._scene is not None and self._scene.observation_hook == self._before_observation:
+            self._scene.observation_hook = None
         self._connected = False
 
     # ------------------------------------------------------------------ internals
@@ -188,6 +165,7 @@ class SO101SimExpert(Teleoperator):
         self._task = sim_task(self.config.task, sim.model, sim, scene.scene, self.config.fps)
         self._expert = expert_for(self._task)
         self._follower, self._scene = follower, scene
+        scene.observation_hook = self._before_observation
         scene.request_reset(self._seed(self._take))
         if self._stop_listening is not None:
             self._stop_listening()
@@ -197,11 +175,22 @@ class SO101SimExpert(Teleoperator):
     def _seed(self, take: int) -> int:
         return self.config.seed + take
 
-    def _fell_behind(self, now: float) -> bool:
+    def _fell_behind(self, now: float, late: float = 0.0) -> bool:
         """LeRobot's loop has started a new episode although the take is not over: only
         knowable without a reset period (see the module's documentation)."""
-        late = self.config.episode_time_s + 0.5 / self.config.fps  # type: ignore[operator]
-        return self.config.reset_time_s == 0 and now - self._wall0 > late
+        episode = self.config.episode_time_s + late  # type: ignore[operator]
+        return self.config.reset_time_s == 0 and now - self._wall0 >= episode
+
+    def _before_observation(self) -> None:
+        """Called by the robot before each observation (before a pending reset is made): an
+        observation ``episode_time_s`` or more after the take's first one is LeRobot's next
+        episode's first (its loop ended the last one by the wall clock), so the take ends here
+        and the next one's reset is made before this observation reads the state."""
+        now = time.perf_counter()
+        if self._running and self._fell_behind(now):
+            self._end_take(cut_short=True)
+        if not self._running and self._obs_wall0 is None:
+            self._obs_wall0 = now  # the next take's first observation
 
     def _start_take(self, now: float) -> None:
         scene, task, expert = self._scene, self._task, self._expert
@@ -209,7 +198,8 @@ class SO101SimExpert(Teleoperator):
         task.remember_start()
         expert.reset()
         self.takes.append(TakeRecord(self._take, self._seed(self._take), dict(scene.placements)))
-        self._running, self._wall0 = True, now
+        first, self._obs_wall0 = self._obs_wall0, None
+        self._running, self._wall0 = True, first if first is not None else now
 
     def _end_take(self, *, cut_short: bool, reset: bool = True) -> None:
         """The take under way is over: log it; ask for the next take's reset."""
@@ -222,7 +212,7 @@ class SO101SimExpert(Teleoperator):
         if cut_short and reset:
             log.warning(
                 "%s: take %d ended after %d of %d calls: the recording loop fell behind and "
-                "LeRobot started a new episode (its first frame shows the last take's end)",
+                "LeRobot started a new episode (the next take starts with it)",
                 self, record.index, record.calls, self.config.take_calls,
             )  # fmt: skip
         how = (

@@ -11,10 +11,8 @@ not the wall clock, so a dataset holds the whole motion however slowly the loop 
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
 
 import numpy as np
-from lerobot.teleoperators import Teleoperator
 
 from so101sim.model import arm_units, load_model
 from so101sim.motion import Move, Segment, commanded_path
@@ -24,9 +22,10 @@ from so101sim.units import JOINT_NAMES
 
 from .config_so101sim import MOTION_TELEOP_TYPE, SO101SimMotionConfig
 from .errors import DeviceAlreadyConnectedError, DeviceNotConnectedError
+from .leader import SimLeader
 
 
-class SO101SimMotion(Teleoperator):
+class SO101SimMotion(SimLeader):
     """Plays a motion file as a leader arm's positions (see the module's documentation)."""
 
     config_class = SO101SimMotionConfig
@@ -49,22 +48,6 @@ class SO101SimMotion(Teleoperator):
         """How many takes (passes through the motion) have started."""
 
     @property
-    def action_features(self) -> dict[str, type]:
-        return dict.fromkeys(MOTOR_KEYS, float)
-
-    @property
-    def feedback_features(self) -> dict[str, type]:
-        return {}
-
-    @property
-    def is_connected(self) -> bool:
-        return self._connected
-
-    @property
-    def is_calibrated(self) -> bool:
-        return True
-
-    @property
     def duration(self) -> float:
         """The motion's length in seconds (one take)."""
         return len(self._plan(vary=False)) * self._dt
@@ -76,12 +59,6 @@ class SO101SimMotion(Teleoperator):
         self._calls, self._take, self.takes = 0, -1, 0
         self._path = self._plan(vary=True)
         self._connected = True
-
-    def calibrate(self) -> None:
-        """Nothing to calibrate."""
-
-    def configure(self) -> None:
-        """Nothing to configure."""
 
     def get_action(self) -> dict[str, float]:
         """The motion's target at ``calls / fps`` seconds (degrees; gripper 0..100)."""
@@ -98,14 +75,6 @@ class SO101SimMotion(Teleoperator):
             self.takes += 1
         row = self._start if i == 0 else self._path[i - 1]
         return dict(zip(MOTOR_KEYS, (float(v) for v in row), strict=True))
-
-    def send_feedback(self, feedback: dict[str, Any]) -> None:
-        """Ignored: a motion file takes no feedback."""
-
-    def disconnect(self) -> None:
-        if not self._connected:
-            raise DeviceNotConnectedError(f"{self} is not connected.")
-        self._connected = False
 
     # ------------------------------------------------------------------ internals
     def _plan(self, *, vary: bool) -> np.ndarray:

@@ -34,6 +34,7 @@ from typing import Any
 from lerobot.robots import Robot
 
 from so101sim.robot import SO101SimFollower
+from so101sim.robot_scene import scene_resets
 
 from .camera import SO101SimCamera
 from .config_so101sim import ROBOT_TYPE, SO101SimConfig
@@ -79,6 +80,7 @@ class SO101Sim(Robot):
         }
         self._actions = 0
         self._t0 = 0.0
+        self._resets = 0
         self._finalizer = weakref.finalize(self, _disconnect, self.follower)
 
     # ------------------------------------------------------------------ features
@@ -112,6 +114,7 @@ class SO101Sim(Robot):
         self.follower.connect(calibrate=calibrate)
         self._actions = 0
         self._t0 = self.follower.time
+        self._resets = scene_resets(self.follower)
 
     def calibrate(self) -> None:
         """Nothing to do: the simulated joints are calibrated by construction."""
@@ -127,7 +130,11 @@ class SO101Sim(Robot):
     # ------------------------------------------------------------------ data
     @raises_lerobot_errors
     def get_observation(self) -> dict[str, Any]:
-        return self.follower.get_observation()
+        obs = self.follower.get_observation()
+        resets = scene_resets(self.follower)
+        if resets != self._resets:  # a new take on the scene: its frames count from here,
+            self._resets, self._actions, self._t0 = resets, 0, self.follower.time  # as in envs
+        return obs
 
     @raises_lerobot_errors
     def send_action(self, action: dict[str, Any]) -> dict[str, Any]:
