@@ -25,7 +25,15 @@ def test_the_examples_are_package_data():
 
 
 def test_the_repositorys_examples_folder_is_the_packages():
-    assert (ROOT / "examples").resolve() == starter.examples_dir().resolve()
+    # examples/ in the repository is a link to the package's folder, and the installed
+    # package (editable or not) holds the same files
+    source = ROOT / "src" / "so101sim" / "data" / "examples"
+    assert (ROOT / "examples").resolve() == source.resolve()
+
+    def names(folder):
+        return {p.name for p in folder.iterdir() if p.suffix in (".py", ".toml")}
+
+    assert names(starter.examples_dir()) == names(source)
 
 
 def test_a_built_package_holds_the_examples(tmp_path):
