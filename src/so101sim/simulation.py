@@ -238,9 +238,10 @@ class Simulation:
         """Set the targets of some joints (indices into :data:`JOINT_NAMES`) to ``values``, arm
         units already checked and inside the limits (the robot's per-action path: no arrays)."""
         units, act = self.units, self.index.actuator
-        q = [units.joint_to_radians(i, v) for i, v in zip(indices, values, strict=True)]
         with self.lock:
-            self.data.ctrl[act[indices]] = q
+            ctrl = self.data.ctrl
+            for i, v in zip(indices, values, strict=True):
+                ctrl[act[i]] = units.joint_to_radians(i, v)
             self._state.commanded = True
 
     def _set_target(self, q: np.ndarray) -> None:

@@ -20,6 +20,7 @@ import logging
 import math
 import threading
 import time
+import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -305,7 +306,7 @@ def hold_steps(
     """
     if target is not None:
         d.ctrl[arm_index(m).actuator] = target
-    s0 = np.empty(mujoco.mj_stateSize(m, _STATE_SPEC))
+    s0 = np.empty(_state_size(m))
     dt = dt or m.opt.timestep
     done = 0
     while done < n:
@@ -321,6 +322,17 @@ def hold_steps(
             advance(m, d, np.broadcast_to(q, (k, len(q))), keep_trace=False)
         done += k
     return n
+
+
+_state_sizes: weakref.WeakKeyDictionary[mujoco.MjModel, int] = weakref.WeakKeyDictionary()
+
+
+def _state_size(m: mujoco.MjModel) -> int:
+    """``mj_stateSize`` of the saved state, looked up once per model."""
+    size = _state_sizes.get(m)
+    if size is None:
+        size = _state_sizes[m] = mujoco.mj_stateSize(m, _STATE_SPEC)
+    return size
 
 
 def _warnings(d: mujoco.MjData) -> int:
