@@ -29,6 +29,14 @@ def test_demo_pick_cube_records_a_verified_video(tmp_path, capsys):
     assert no_partial_files(tmp_path)
 
 
+@pytest.mark.parametrize("camera", ["wrist", "free"])
+def test_demo_records_from_each_camera_its_help_names(tmp_path, capsys, camera):
+    path = tmp_path / f"{camera}.mp4"
+    argv = ["demo", "pick_cube", "--record", str(path), "--headless", "--camera", camera]
+    assert main([*argv, "--width", "64", "--height", "48", "--fps", "5"]) == 0
+    assert count_frames(path) > 10 and "success" in capsys.readouterr().out
+
+
 def test_demo_refuses_to_overwrite_without_force(tmp_path, capsys):
     path = tmp_path / "pick.mp4"
     path.write_bytes(b"keep")

@@ -301,3 +301,19 @@ def test_visual_jitter_draws_a_new_look_per_seed_the_same_for_the_same_seed():
     np.testing.assert_array_equal(a, again)
     assert np.abs(a.astype(int) - b).mean() > 1
     env.close()
+
+
+def test_human_render_without_a_display_says_what_an_environment_can_do(monkeypatch):
+    from so101sim.errors import ViewerError
+
+    monkeypatch.setattr("sys.platform", "linux")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    env = gym.make("so101sim/PickCube-v0", render_mode="human")
+    try:
+        with pytest.raises(ViewerError, match=r"render_mode='rgb_array' or None") as info:
+            env.reset(seed=0)  # human mode shows every reset and step
+            env.render()
+        assert "skip_render_check=True" in str(info.value)
+    finally:
+        env.close()

@@ -58,6 +58,21 @@ def test_a_raw_loop_with_record_and_the_csv_log(tmp_path):
     assert not v.is_running()
 
 
+def test_the_shipped_lab_example_records_without_a_display(tmp_path, monkeypatch, capsys):
+    # it opens so101sim's viewer only when there is a display: under record there is one
+    from so101sim import starter, viewer
+
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    out = tmp_path / "lab.mp4"
+    script = starter.examples_dir() / "lab_motion.py"
+    run = handin.run_script(script, [], out, width=64, height=48)
+    assert run.exit_status == 0 and run.simulated_seconds == pytest.approx(6.0, abs=0.01)
+    assert abs(_frames(out) - 181) <= 1
+    assert "t = 6.000 s" in capsys.readouterr().out
+    assert not viewer.has_display()  # put back after the run
+
+
 def test_a_script_that_opens_no_viewer_says_so(tmp_path):
     script = tmp_path / "s.py"
     script.write_text("print('hello')\n")

@@ -192,3 +192,16 @@ def test_on_a_local_ray_with_two_workers():
         assert run_on_ray(job, None, chunk=2) == run_chunk(job, threads=1)
     finally:
         ray.shutdown()
+
+
+def test_ray_auto_without_a_cluster_is_a_one_line_error(monkeypatch):
+    ray = pytest.importorskip("ray")
+    from so101sim.distributed import run_on_ray
+    from so101sim.errors import SettingError
+    from so101sim.preflight_variants import make_job
+
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    job = make_job(LAB, count=2, seed=0)
+    assert not ray.is_initialized()
+    with pytest.raises(SettingError, match=r"--ray auto: no Ray cluster to join .*--ray local"):
+        run_on_ray(job, "auto")

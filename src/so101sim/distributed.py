@@ -58,7 +58,15 @@ def run_on_ray(
     """
     ray = import_ray()
     if address is not None and not ray.is_initialized():
-        ray.init(address=None if address == "local" else address)
+        try:
+            ray.init(address=None if address == "local" else address)
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise SettingError(
+                f"--ray {address}: no Ray cluster to join ({first}); expected a running "
+                "cluster (`ray start --head`, then --ray auto), its address, or --ray local "
+                "to start one here"
+            ) from None
     task = ray.remote(num_cpus=1)(run_chunk)
     refs = [task.remote(job, a, b, 1) for a, b in chunks(job.count, chunk)]
     return merge(ray.get(refs), job.count)

@@ -242,15 +242,28 @@ def _refuse_launch(*args: Any, **kwargs: Any) -> None:
 
 @contextlib.contextmanager
 def _patched_viewer(session: _Session) -> Iterator[None]:
+    """While the script runs: ``mujoco.viewer.launch_passive`` and so101sim's own
+    ``open_viewer`` return the recorder, and ``so101sim.viewer.has_display()`` is True (a
+    script that opens a viewer only when there is a display records too)."""
     import mujoco.viewer  # imported here: only script runs need it
 
+    from . import viewer as sim_viewer
+
+    @contextlib.contextmanager
+    def open_recorder(m: mujoco.MjModel, d: mujoco.MjData, **_: Any) -> Iterator[Any]:
+        yield session.launch_passive(m, d)
+
     saved = (mujoco.viewer.launch_passive, mujoco.viewer.launch)
+    saved_sim = (sim_viewer.open_viewer, sim_viewer.has_display)
     mujoco.viewer.launch_passive = session.launch_passive  # type: ignore[assignment]
     mujoco.viewer.launch = _refuse_launch  # type: ignore[assignment]
+    sim_viewer.open_viewer = open_recorder  # type: ignore[assignment]
+    sim_viewer.has_display = lambda: True  # type: ignore[assignment]
     try:
         yield
     finally:
         mujoco.viewer.launch_passive, mujoco.viewer.launch = saved
+        sim_viewer.open_viewer, sim_viewer.has_display = saved_sim
 
 
 @contextlib.contextmanager
@@ -295,8 +308,9 @@ def run_script(
         outputs = session.close()
     if session.viewer is None:
         raise NothingRecordedError(
-            f"{path.name} never opened mujoco.viewer.launch_passive(m, d) (nor so101sim.record): "
-            "nothing to record; open the viewer as the lab handout does"
+            f"{path.name} never opened a viewer (mujoco.viewer.launch_passive(m, d), "
+            "so101sim.viewer.open_viewer or so101sim.record): nothing to record; open the "
+            "viewer as the lab handout does"
         )
     return ScriptRun(status, outputs, clock.elapsed(), message)
 

@@ -31,7 +31,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from ..errors import SettingError, SimulationDivergedError
+from ..errors import SettingError, SimulationDivergedError, ViewerError
 from ..recording import FREE_CAMERA, QUALITY_CHOICES, FrameRenderer, VideoSettings
 from ..recording.settings import check_quality
 from ..robot_config import GRIPPER_TORQUE_FRACTION
@@ -290,7 +290,15 @@ class So101TaskEnv(SceneState, gym.Env):
                 from ..viewer import open_viewer  # imported here only to keep start-up fast
 
                 stack = contextlib.ExitStack()
-                self._viewer = stack.enter_context(open_viewer(self.model, self.sim.data))
+                try:
+                    self._viewer = stack.enter_context(open_viewer(self.model, self.sim.data))
+                except ViewerError as exc:  # the same reason, with an environment's way out
+                    raise ViewerError(
+                        f"render_mode='human' needs MuJoCo's viewer: {exc}. For an "
+                        "environment: render_mode='rgb_array' or None (and "
+                        "check_env(env, skip_render_check=True) on a machine without a "
+                        "display), or run under xvfb-run"
+                    ) from None
                 self._viewer_stack = stack
             self._viewer.sync()
         return None

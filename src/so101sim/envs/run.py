@@ -134,6 +134,8 @@ def run_expert(
         env_kwargs.setdefault("terminate_on_success", False)
     if viewer:
         env_kwargs["render_mode"] = "human"
+    if record is not None and settings.camera != "free":
+        env_kwargs.setdefault("render_camera", settings.camera)  # its scene holds that camera
     env = make(task, **env_kwargs)
     recorder = None
     try:
