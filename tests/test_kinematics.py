@@ -298,3 +298,10 @@ def test_the_example_prints_the_tip_and_solves_ik():
     apart = float(out.split("1000 random poses: at most ")[1].split(" mm")[0])
     assert apart < 0.5  # the rounded textbook chain agrees with the simulator
     assert "reached  x=0.200 y=0.000 z=0.050 m, pitch=-90.0°" in out
+
+
+def test_a_pose_outside_the_limits_gets_advice_kinematics_can_follow():
+    with pytest.raises(JointLimitError, match="elbow_flex") as info:
+        tip_pose({**STARTING_POSE, "elbow_flex": 200.0})
+    assert "clip" not in str(info.value)  # tip_pose has no clip argument
+    assert "inside the limits" in str(info.value) and info.value.joint == "elbow_flex"

@@ -205,3 +205,20 @@ def test_ray_auto_without_a_cluster_is_a_one_line_error(monkeypatch):
     assert not ray.is_initialized()
     with pytest.raises(SettingError, match=r"--ray auto: no Ray cluster to join .*--ray local"):
         run_on_ray(job, "auto")
+
+
+def test_check_options_of_the_variants_need_variants_and_plots_are_not_overwritten(
+    tmp_path, capsys
+):
+    from so101sim.cli import main
+
+    for extra in (["--seed", "5"], ["--force"], ["--threads", "1"]):
+        assert main(["check", *extra]) == 2
+        assert "go with --variants N" in capsys.readouterr().err
+    plot = tmp_path / "v.png"
+    plot.write_bytes(b"keep")
+    argv = ["check", "--variants", "2", "--plot", str(plot)]
+    assert main(argv) == 2  # refused before anything runs
+    assert "--force" in capsys.readouterr().err and plot.read_bytes() == b"keep"
+    assert main([*argv, "--force"]) in (0, 1)  # ran: PASS or FAIL, and the plot written
+    assert plot.read_bytes()[:4] == b"\x89PNG"

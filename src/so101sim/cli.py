@@ -323,9 +323,10 @@ def _add_check_options(p: argparse.ArgumentParser) -> None:
         p.add_argument(flag, type=float, default=default, help=f"{text} (default {default:g})")
     v = p.add_argument_group("robust preflight (perturbed arms; ranges: the file's [variants])")
     v.add_argument("--variants", type=int, metavar="N", help="run on N perturbed arms (1-100000)")
-    v.add_argument("--seed", type=int, default=0, help="seed of the variants (default 0)")
+    v.add_argument("--seed", type=int, help="seed of the variants (default 0)")
     v.add_argument("--threads", type=int, help="threads (default: every core)")
     v.add_argument("--plot", metavar="PNG", help="histograms of the variants' figures")
+    v.add_argument("--force", action="store_true", help="overwrite an existing --plot file")
     v.add_argument("--ray", metavar="ADDRESS", help="run on Ray: auto, local or an address")
 
 
@@ -461,8 +462,10 @@ def cmd_check(args: argparse.Namespace) -> int:
     motion = args.motion if args.motion else lab_motion_path()
     if args.variants is not None:
         return _check_variants(args, motion, thresholds)
-    if any(getattr(args, o) is not None for o in ("threads", "plot", "ray")):
-        raise SettingError("--threads, --plot and --ray go with --variants N; expected --variants")
+    if any(getattr(args, o) is not None for o in ("seed", "threads", "plot", "ray")) or args.force:
+        raise SettingError(
+            "--seed, --threads, --plot, --force and --ray go with --variants N; expected --variants"
+        )
     with output_hint(args.motion, "so101sim run "):
         report = check_motion_file(
             motion, model=args.model, thresholds=thresholds, strict=args.strict
@@ -477,16 +480,17 @@ def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> i
     from . import preflight_variants as pv  # imports MuJoCo
 
     settings = {"model": args.model, "thresholds": thresholds, "strict": args.strict}
+    seed = 0 if args.seed is None else args.seed
     if args.plot:
-        pv.check_plot_path(args.plot)  # before anything runs
+        pv.check_plot_path(args.plot, force=args.force)  # before anything runs
     if args.ray is None:
         report = pv.check_variants(
-            motion, count=args.variants, seed=args.seed, threads=args.threads, **settings
+            motion, count=args.variants, seed=seed, threads=args.threads, **settings
         )
     else:
         from .distributed import run_on_ray
 
-        job = pv.make_job(motion, count=args.variants, seed=args.seed, **settings)
+        job = pv.make_job(motion, count=args.variants, seed=seed, **settings)
         report = pv.summarize(job, run_on_ray(job, args.ray))
     if args.plot:
         pv.plot_variants(report, args.plot, force=True)

@@ -282,12 +282,13 @@ def format_variants(report: VariantsReport) -> str:
     return "\n".join(rows)
 
 
-def check_plot_path(path: str | Path) -> Path:
-    """Check that the histogram can be written to ``path`` (before anything runs)."""
+def check_plot_path(path: str | Path, *, force: bool = False) -> Path:
+    """Check that the histogram can be written to ``path`` (before anything runs): an
+    existing file only with ``force``."""
     from .recording.paths import check_output_path  # imported here: only plots need it
     from .recording.plot import PLOT_SUFFIXES
 
-    return check_output_path(path, force=True, what="plot", suffixes=PLOT_SUFFIXES)
+    return check_output_path(path, force=force, what="plot", suffixes=PLOT_SUFFIXES)
 
 
 def plot_variants(report: VariantsReport, path: str | Path, *, force: bool = False) -> Path:

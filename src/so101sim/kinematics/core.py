@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from ..errors import JointValueError, ModelError
+from ..errors import JointLimitError, JointValueError, ModelError
 from ..model import ArmIndex, arm_index, arm_units, load_model
 from ..units import BODY_JOINTS, JOINT_NAMES, ArmUnits, Pose
 
@@ -210,7 +210,25 @@ class Kinematics:
 
     def pose_values(self, pose: Pose | np.ndarray, *, base: np.ndarray | None = None) -> np.ndarray:
         """A pose dict (joint names or LeRobot keys; missing joints from ``base``) or an array
-        of six, checked against the limits, as an array in arm units."""
+        of six, checked against the limits, as an array in arm units.
+
+        Raises:
+            JointLimitError: a joint outside its limits (the advice fits kinematics: there is
+                no ``clip`` here).
+        """
+        try:
+            return self._pose_values(pose, base)
+        except JointLimitError as exc:
+            raise JointLimitError(
+                exc.what,
+                "kinematics takes poses the arm can reach: give a value inside the limits",
+                joint=exc.joint,
+                value=exc.value,
+                lower=exc.lower,
+                upper=exc.upper,
+            ) from None
+
+    def _pose_values(self, pose: Pose | np.ndarray, base: np.ndarray | None) -> np.ndarray:
         if isinstance(pose, Mapping):
             return self.units.pose_to_array(pose, base=base)
         arr = np.asarray(pose, dtype=float)

@@ -154,7 +154,7 @@ def _check_plot_path(path: str | os.PathLike[str], force: bool) -> Path:
     if p.exists() and not force:
         raise OutputPathError(
             f"the workspace plot {str(p)!r} already exists; expected a new file name, or "
-            "force=True to overwrite it"
+            "--force (force=True in Python) to overwrite it"
         )
     return p
 
