@@ -2,6 +2,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import time
 
 import mujoco
 import numpy as np
@@ -95,3 +96,34 @@ def test_two_processes_filling_the_cache_at_once_both_get_the_model(cache):
     assert all(p.returncode == 0 for p in procs)
     assert outs[0] == outs[1] and len(list(cache.glob("*.mjb"))) == 1
     assert not list(cache.glob(".*.partial"))
+
+
+def test_unchanged_files_are_not_read_again_and_a_changed_one_is(cache, tmp_path, monkeypatch):
+    folder = tmp_path / "model"
+    folder.mkdir()
+    xml = folder / "scene.xml"
+    xml.write_text("<mujoco/>")
+    (folder / "mesh.stl").write_bytes(b"a" * 1000)
+    modelcache.key_for(xml)
+    assert not list(cache.glob(f"{modelcache.MEMO_FOLDER}/*.txt"))  # just written: not kept
+    monkeypatch.setattr(modelcache, "MEMO_SETTLE_S", 0.0)
+    first = modelcache.key_for(xml)
+    assert len(list((cache / modelcache.MEMO_FOLDER).glob("*.txt"))) == 1
+    real_read = type(xml).read_bytes
+    with monkeypatch.context() as m:
+        m.setattr(type(xml), "read_bytes", lambda self: pytest.fail(f"{self} read again"))
+        assert modelcache.key_for(xml) == first
+    # same size and modification time, other content: still seen (its change time moved)
+    stat = (folder / "mesh.stl").stat()
+    time.sleep(0.05)  # past the file system clock's tick, as any later edit is
+    (folder / "mesh.stl").write_bytes(b"b" * 1000)
+    os.utime(folder / "mesh.stl", ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    second = modelcache.key_for(xml)
+    assert second != first
+    assert real_read(folder / "mesh.stl") == b"b" * 1000
+    (cache / modelcache.MEMO_FOLDER / "x.txt").write_text("garbage")
+    for memo in (cache / modelcache.MEMO_FOLDER).glob("*.txt"):
+        memo.write_text("not a digest")  # a damaged memo: the files are hashed again
+    assert modelcache.key_for(xml) == second
+    modelcache.clear()
+    assert not list((cache / modelcache.MEMO_FOLDER).glob("*"))

@@ -344,11 +344,13 @@ def _add_teleop_options(p: argparse.ArgumentParser) -> None:
 # ---------------------------------------------------------------------------- run and hold
 def _prepare_rendering(args: argparse.Namespace) -> None:
     """With --record, choose MuJoCo's OpenGL backend (EGL or OSMesa without a display) before
-    MuJoCo is first imported."""
-    if args.record:
-        from .gl import prepare_for_rendering  # imported here: only rendering commands need it
+    MuJoCo is first imported; with --headless and no --record nothing draws: no backend."""
+    from .gl import prepare_for_rendering, skip_opengl
 
+    if args.record:
         prepare_for_rendering()
+    elif args.headless:
+        skip_opengl()
 
 
 def _outputs(args: argparse.Namespace) -> Outputs:

@@ -89,6 +89,17 @@ def prepare_for_rendering(loader: Callable[[str], bool] = _dlopen) -> str | None
     return ensure_offscreen_backend(loader)
 
 
+def skip_opengl() -> bool:
+    """For a command that draws nothing (``so101sim run --headless`` without ``--record``):
+    tell MuJoCo not to load an OpenGL backend at all (``MUJOCO_GL=disable``; its default would
+    load the GLFW library, a noticeable part of a short run's start-up). Only before ``mujoco``
+    is imported and when ``MUJOCO_GL`` is unset; returns whether it was set."""
+    if "MUJOCO_GL" in os.environ or _mujoco_imported():
+        return False
+    _set_backend("disable", "so101sim set MUJOCO_GL=disable: the command draws nothing")
+    return True
+
+
 def _set_backend(backend: str, why: str) -> None:
     global selection, _chosen
     os.environ["MUJOCO_GL"] = _chosen = backend

@@ -23,11 +23,14 @@ import hashlib
 import logging
 import os
 import tempfile
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
+
+from . import modeltrim
 
 log = logging.getLogger(__name__)
 
@@ -35,6 +38,8 @@ MAX_HASHED_BYTES = 512 * 1024 * 1024
 """A model folder larger than this is not cached (hashing it would cost more than compiling)."""
 
 ENTRY_SUFFIX = ".mjb"
+MEMO_FOLDER = "digests"  # each model folder's content digest, with its files' stat results
+MEMO_SETTLE_S = 2.0  # files changed more recently than this are hashed again next time
 
 
 def cache_dir() -> Path:
@@ -54,15 +59,31 @@ def enabled() -> bool:
 
 def _folder_digest(folder: Path) -> str | None:
     """SHA-256 over the names and contents of every file under ``folder`` (sorted), or None
-    when it holds more than :data:`MAX_HASHED_BYTES` or cannot be read."""
-    h = hashlib.sha256()
-    total = 0
+    when it holds more than :data:`MAX_HASHED_BYTES` or cannot be read.
+
+    The digest is remembered in the cache folder with each file's size, modification and
+    change times and inode: while none of them changed, the files are not read again (files
+    changed in the last :data:`MEMO_SETTLE_S` seconds are not remembered)."""
     try:
         files = sorted(p for p in folder.rglob("*") if p.is_file())
-        for p in files:
-            total += p.stat().st_size
-            if total > MAX_HASHED_BYTES:
-                return None
+        stats = [(p, p.stat()) for p in files]
+    except OSError as exc:
+        log.debug("model cache: cannot list %s: %s", folder, exc)
+        return None
+    if sum(st.st_size for _, st in stats) > MAX_HASHED_BYTES:
+        return None
+    signature = "\n".join(
+        f"{p.relative_to(folder)}\t{st.st_size}\t{st.st_mtime_ns}\t{st.st_ctime_ns}\t{st.st_ino}"
+        for p, st in stats
+    )
+    memo = _digest_memo(folder)
+    with contextlib.suppress(OSError, UnicodeDecodeError):
+        digest, _, remembered = memo.read_text().partition("\n")
+        if remembered == signature and len(digest) == 64:
+            return digest
+    h = hashlib.sha256()
+    try:
+        for p, _ in stats:
             h.update(str(p.relative_to(folder)).encode())
             h.update(b"\0")
             h.update(p.read_bytes())
@@ -70,7 +91,21 @@ def _folder_digest(folder: Path) -> str | None:
     except OSError as exc:
         log.debug("model cache: cannot hash %s: %s", folder, exc)
         return None
-    return h.hexdigest()
+    digest = h.hexdigest()
+    # A file changed in the last moments could change again within the file system's clock
+    # tick and keep its times: remember only files that have settled.
+    settled = time.time_ns() - MEMO_SETTLE_S * 1e9
+    if all(st.st_ctime_ns < settled and st.st_mtime_ns < settled for _, st in stats):
+        try:
+            _write_with(memo, lambda tmp: Path(tmp).write_text(f"{digest}\n{signature}"))
+        except OSError as exc:
+            log.debug("model cache: cannot write %s: %s", memo, exc)
+    return digest
+
+
+def _digest_memo(folder: Path) -> Path:
+    name = hashlib.sha256(str(folder.resolve()).encode()).hexdigest()[:32]
+    return cache_dir() / MEMO_FOLDER / f"{name}.txt"
 
 
 def key_for(path: Path, variant: str = "") -> str | None:
@@ -83,11 +118,20 @@ def key_for(path: Path, variant: str = "") -> str | None:
 
 
 def _write(entry: Path, model: mujoco.MjModel) -> None:
+    _write_with(entry, lambda tmp: mujoco.mj_saveModel(model, tmp, None))
+
+
+def _write_bytes(entry: Path, data: bytes) -> None:
+    _write_with(entry, lambda tmp: Path(tmp).write_bytes(data))
+
+
+def _write_with(entry: Path, write: Callable[[str], object]) -> None:
+    """``write(tmp)`` a file next to ``entry``, then rename it to ``entry`` (atomic)."""
     entry.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=".", suffix=".partial", dir=entry.parent)
     os.close(fd)
     try:
-        mujoco.mj_saveModel(model, tmp, None)
+        write(tmp)
         os.replace(tmp, entry)
     finally:
         if os.path.exists(tmp):
@@ -105,15 +149,26 @@ def _read(entry: Path) -> mujoco.MjModel | None:
 
 
 def load_or_compile(
-    path: Path, compile_fn: Callable[[], mujoco.MjModel], *, variant: str = ""
+    path: Path,
+    compile_fn: Callable[[], mujoco.MjModel],
+    *,
+    variant: str = "",
+    physics_only: bool = False,
 ) -> mujoco.MjModel:
     """The model compiled from ``path``: from the cache when an entry for its current content
-    exists, else ``compile_fn()`` (then saved to the cache when possible)."""
+    exists, else ``compile_fn()`` (then saved to the cache when possible).
+
+    ``physics_only``: the model without what only drawing and ray casting use
+    (:func:`so101sim.modeltrim.physics_only`: the same physics bit for bit, about a fifth of
+    the memory), kept as its own entry; the full model when the cache is off or unwritable or
+    the model cannot be trimmed."""
     if not enabled():
         return compile_fn()
     key = key_for(path, variant)
     if key is None:
         return compile_fn()
+    if physics_only:
+        return _physics_only(path, compile_fn, variant, key)
     entry = cache_dir() / f"{key}{ENTRY_SUFFIX}"
     if entry.is_file():
         model = _read(entry)
@@ -127,6 +182,27 @@ def load_or_compile(
     except OSError as exc:
         log.debug("model cache: cannot write %s: %s", entry, exc)
     return model
+
+
+def _physics_only(
+    path: Path, compile_fn: Callable[[], mujoco.MjModel], variant: str, key: str
+) -> mujoco.MjModel:
+    entry = cache_dir() / f"{key}-physics{ENTRY_SUFFIX}"
+    if entry.is_file():
+        model = _read(entry)
+        if model is not None:
+            log.debug("model cache: loaded %s (physics only) from %s", path, entry)
+            return model
+    full = load_or_compile(path, compile_fn, variant=variant)
+    data = modeltrim.physics_only(full)
+    if data is None:
+        return full
+    try:
+        _write_bytes(entry, data)
+    except OSError as exc:
+        log.debug("model cache: cannot write %s: %s", entry, exc)
+        return full
+    return _read(entry) or full
 
 
 @dataclass(frozen=True)
@@ -152,5 +228,7 @@ def clear() -> CacheInfo:
         for f in before.folder.glob(f"*{ENTRY_SUFFIX}"):
             f.unlink(missing_ok=True)
         for f in before.folder.glob(".*.partial"):
+            f.unlink(missing_ok=True)
+        for f in before.folder.glob(f"{MEMO_FOLDER}/*"):
             f.unlink(missing_ok=True)
     return before

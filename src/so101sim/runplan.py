@@ -19,18 +19,21 @@ from collections.abc import Callable, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 
 from .framing import sweep_frames
 from .model import arm_units, load_model
 from .motion import RunResult, Segment, commanded_path, run_motion, validate_segments
-from .recording import Recorder, VideoSettings, video_frames
+from .recording.settings import VideoSettings
 from .simulation import Observer, Pacer, Simulation, ViewerObserver
 from .trajectory import check_limited_moves
 from .units import STARTING_POSE, Pose
 from .viewer import ViewerChoice, choose_viewer, open_viewer
+
+if TYPE_CHECKING:
+    from .recording import Recorder
 
 
 @dataclass(frozen=True)
@@ -81,6 +84,8 @@ class PreparedRun:
         """Frames the video will hold (None without a video)."""
         if self.recorder is None or self.recorder.video is None:
             return None
+        from .recording import video_frames  # imported here: only a run that records needs it
+
         return video_frames(self.duration, self.recorder.settings.fps)
 
     def execute(self, progress: Callable[[int], Any] | None = None) -> RunResult:
@@ -103,7 +108,7 @@ def prepare_run(
     segments: Sequence[Segment],
     *,
     start: Pose = STARTING_POSE,
-    model: str | Path | None = None,
+    model: str | Path | mujoco.MjModel | None = None,
     speed: float = 1.0,
     headless: bool = False,
     strict: bool = False,
@@ -115,14 +120,22 @@ def prepare_run(
         So101SimError: a bad speed, model, segment, output path or video setting, or (with
             ``strict``) a ``limited`` move too short for the joint limits.
     """
+    viewer = choose_viewer(headless)
+    # nothing will draw it: the physics-only model (same physics, a fifth of the memory)
+    draws = viewer.use or (outputs is not None and outputs.video is not None)
+    loaded = (
+        model if isinstance(model, mujoco.MjModel) else load_model(model, physics_only=not draws)
+    )
     if strict:
-        check_strict(load_model(model), segments, start)
+        check_strict(loaded, segments, start)
     pacer = Pacer(speed)  # checks the speed before anything opens
-    sim = Simulation(model, initial_pose=start)
+    sim = Simulation(loaded, initial_pose=start)
     # every target and duration, before anything runs (tip moves planned in full)
     validate_segments(sim.model, segments, start=sim.commanded_array())
     recorder = None
     if outputs is not None and outputs.wanted:
+        from .recording import Recorder  # imported here: only a run that writes files needs it
+
         sweep = None
         if outputs.video is not None:  # the camera frames what the motion will sweep
             _, path = commanded_path(sim.model, segments, start)
@@ -136,7 +149,7 @@ def prepare_run(
             force=outputs.force,
             sweep=sweep,
         )
-    return PreparedRun(sim, tuple(segments), pacer, choose_viewer(headless), recorder)
+    return PreparedRun(sim, tuple(segments), pacer, viewer, recorder)
 
 
 __all__ = ["Outputs", "PreparedRun", "check_strict", "prepare_run"]

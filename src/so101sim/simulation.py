@@ -21,13 +21,12 @@ import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
 
 from .errors import DurationError, ModelError, SettingError
-from .kinematics import TipPose, for_model, plan_line, solve_ik
 from .model import ArmIndex, arm_index, arm_units, load_model
 from .profiles import (
     MAX_MOVE_DURATION_S,
@@ -41,6 +40,9 @@ from .profiles import (
 from .stepping import Observer, Pacer, Trace, ViewerObserver, advance, hold_steps, measured_radians
 from .units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose, unit_warnings
 from .validation import MAX_DURATION_S, check_choice, check_count
+
+if TYPE_CHECKING:
+    from .kinematics import TipPose
 
 log = logging.getLogger(__name__)
 
@@ -422,6 +424,8 @@ class Simulation:
             UnreachableError: the tip (or, for a line, some point of it) cannot be reached.
             DurationError, SettingError: a bad duration, path or profile.
         """
+        from .kinematics import plan_line, solve_ik  # imported here: only tip moves need it
+
         check_choice(path, "path", ("line", "joint"))
         n = steps_for(_required(duration), self.timestep, maximum=MAX_MOVE_DURATION_S)
         start = self.commanded_array()
@@ -437,6 +441,8 @@ class Simulation:
     def tip(self) -> TipPose:
         """Where the gripper's tip is now (measured): position in metres in the base frame and
         orientation (:class:`~so101sim.kinematics.TipPose`)."""
+        from .kinematics import for_model  # imported here: only tip queries need it
+
         return for_model(self.model).tip_array(self.pose_array())
 
     def hold(

@@ -40,24 +40,73 @@ The modules, one job each:
 - :mod:`.recorder`: :class:`Recorder`, all of the above at once.
 """
 
-from .csvlog import CsvLog, csv_columns
-from .draft import SHIPPED_MODEL_FILES, draft_mesh_dir, draft_source, render_model
-from .frames import FrameRenderer
-from .paths import check_output_path
-from .plot import MAX_PLOT_POINTS, PLOT_SUFFIXES, RunLog, TraceCollector, plot_run
-from .recorder import Recorder
-from .settings import (
-    FREE_CAMERA,
-    MAX_FPS,
-    MAX_FRAME_SIZE,
-    QUALITIES,
-    QUALITY_CHOICES,
-    VideoSettings,
-    camera_names,
-    check_camera,
-    resolve_quality,
-)
-from .video import VIDEO_SUFFIXES, VideoRecorder, video_frames
+import importlib
+from typing import TYPE_CHECKING, Any
+
+# Each name is imported from its module on first use (PEP 562), only to keep start-up fast:
+# a headless run that writes nothing (so101sim run --headless) imports .settings and no more.
+_LAZY: dict[str, str] = {
+    "CsvLog": "csvlog",
+    "FREE_CAMERA": "settings",
+    "FrameRenderer": "frames",
+    "MAX_FPS": "settings",
+    "MAX_FRAME_SIZE": "settings",
+    "MAX_PLOT_POINTS": "plot",
+    "PLOT_SUFFIXES": "plot",
+    "QUALITIES": "settings",
+    "QUALITY_CHOICES": "settings",
+    "Recorder": "recorder",
+    "RunLog": "plot",
+    "SHIPPED_MODEL_FILES": "draft",
+    "TraceCollector": "plot",
+    "VIDEO_SUFFIXES": "video",
+    "VideoRecorder": "video",
+    "VideoSettings": "settings",
+    "camera_names": "settings",
+    "check_camera": "settings",
+    "check_output_path": "paths",
+    "csv_columns": "csvlog",
+    "draft_mesh_dir": "draft",
+    "draft_source": "draft",
+    "plot_run": "plot",
+    "render_model": "draft",
+    "resolve_quality": "settings",
+    "video_frames": "video",
+}
+
+if TYPE_CHECKING:  # for type checkers and editors; at run time names load on first use
+    from .csvlog import CsvLog, csv_columns
+    from .draft import SHIPPED_MODEL_FILES, draft_mesh_dir, draft_source, render_model
+    from .frames import FrameRenderer
+    from .paths import check_output_path
+    from .plot import MAX_PLOT_POINTS, PLOT_SUFFIXES, RunLog, TraceCollector, plot_run
+    from .recorder import Recorder
+    from .settings import (
+        FREE_CAMERA,
+        MAX_FPS,
+        MAX_FRAME_SIZE,
+        QUALITIES,
+        QUALITY_CHOICES,
+        VideoSettings,
+        camera_names,
+        check_camera,
+        resolve_quality,
+    )
+    from .video import VIDEO_SUFFIXES, VideoRecorder, video_frames
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
 
 __all__ = [
     "FREE_CAMERA",
