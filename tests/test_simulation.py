@@ -430,3 +430,11 @@ def test_a_never_commanded_arm_holds_its_pose_with_nothing_watching():
     sim.step(1000, trace=False)
     assert sim.pose() == pytest.approx(before, abs=1.0)
     assert sim.commanded() == pytest.approx(before, abs=1e-6)
+
+
+def test_pose_values_are_the_pose_array_as_plain_floats():
+    sim = Simulation()
+    sim.move_to({**ZERO_POSE, "shoulder_pan": 20, "elbow_flex": 10, "gripper": 40}, 0.5)
+    values = sim.pose_values()
+    assert all(type(v) is float for v in values)
+    assert values == sim.pose_array().tolist()

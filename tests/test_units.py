@@ -181,3 +181,13 @@ def test_an_integer_too_long_to_print_still_gives_the_error():
 
     with pytest.raises(DurationError, match="too large"):
         check_duration(10**5000)
+
+
+def test_the_plain_float_conversions_are_bit_for_bit_the_array_ones():
+    units = default_units()
+    rng = np.random.default_rng(5)
+    for q in rng.uniform(-7.0, 7.0, size=(2000, 6)):
+        assert units.values_from_radians(q.tolist()) == units.from_radians(q).tolist()
+        values = units.from_radians(q)
+        radians = [units.joint_to_radians(i, v) for i, v in enumerate(values.tolist())]
+        assert radians == units.to_radians(values).tolist()

@@ -237,7 +237,7 @@ class SO101SimFollower:
         self._check_connected()
         robot_scene.before_observation(self)  # a scene reset asked for between takes
         with self._lock:
-            values = self._sim.pose_array().tolist()
+            values = self._sim.pose_values()
             # LeRobot clamps the gripper's reading to its calibrated range (0..100)
             values[GRIPPER_INDEX] = min(100.0, max(0.0, values[GRIPPER_INDEX]))
             shot = self._rig.snapshot() if self._rig.specs else None  # copied under the lock

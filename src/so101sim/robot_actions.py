@@ -42,7 +42,13 @@ def parse_action(action: object) -> dict[str, float]:
             f"an action must be a dict keyed by {', '.join(MOTOR_KEYS)}, got "
             f"{type(action).__name__}"
         )
-    return dict(_action_item(key, value) for key, value in action.items())
+    goals = {}
+    for key, value in action.items():  # the common case, checked in a few operations
+        if type(value) is float and type(key) is str and key in _NAMES and math.isfinite(value):
+            goals[_NAMES[key]] = value
+        else:
+            return dict(_action_item(k, v) for k, v in action.items())
+    return goals
 
 
 _NAMES = {key: key[: -len(LEROBOT_SUFFIX)] for key in MOTOR_KEYS}
@@ -52,8 +58,6 @@ JOINT_INDEX = {name: i for i, name in enumerate(JOINT_NAMES)}
 
 def _action_item(key: object, value: object) -> tuple[str, float]:
     """``("<joint>.pos", value)`` -> ``(joint name, value as a float)``, checked."""
-    if type(value) is float and type(key) is str and key in _NAMES and math.isfinite(value):
-        return _NAMES[key], value  # the common case, checked in a few operations
     if not (isinstance(key, str) and key in MOTOR_KEYS):
         raise JointNameError(
             f"unknown action key {key!r}; valid keys are {', '.join(MOTOR_KEYS)} "

@@ -21,8 +21,10 @@ import time
 import weakref
 from typing import Any
 
+import numpy as np
+
 from .simulation import Pacer, Simulation
-from .stepping import hold_steps
+from .stepping import hold_steps, state_size
 
 log = logging.getLogger(__name__)
 
@@ -52,6 +54,7 @@ class RobotThreads:
         self._viewer_stack: contextlib.ExitStack | None = None
         self._last_sync = -math.inf
         self._dt = sim.timestep
+        self._scratch = np.empty(state_size(sim.model))  # the lockstep path's saved state
 
     def tie_to(self, owner: object) -> weakref.finalize:
         """Stop these threads at interpreter exit (an ``atexit`` hook registered now, so it
@@ -99,7 +102,7 @@ class RobotThreads:
         if n <= 0:
             return
         if sim.was_commanded and not sim.observers:  # the lockstep path: nothing else to do
-            hold_steps(sim.model, sim.data, None, n, self._dt)
+            hold_steps(sim.model, sim.data, None, n, self._dt, self._scratch)
         else:
             sim.step(n, trace=False)
         if self.viewer is not None:

@@ -143,6 +143,8 @@ class Simulation:
         self.data = data if data is not None else mujoco.MjData(self.model)
         self.index: ArmIndex = arm_index(self.model)
         self.units: ArmUnits = arm_units(self.model)
+        self._qpos_list: list[int] = self.index.qpos.tolist()  # plain ints, for pose_values
+        self._actuator_list: list[int] = self.index.actuator.tolist()  # for command_joints
         self.observers: list[Observer] = []
         self.lock = threading.RLock()
         self._state = _ArmState()
@@ -184,6 +186,12 @@ class Simulation:
     def pose_array(self) -> np.ndarray:
         """The measured pose as an array in arm units."""
         return self.units.from_radians(self.data.qpos[self.index.qpos])
+
+    def pose_values(self) -> list[float]:
+        """:meth:`pose_array` as six plain floats, bit for bit, without NumPy arrays (the
+        robot's per-call path)."""
+        q = self.data.qpos.tolist()
+        return self.units.values_from_radians([q[i] for i in self._qpos_list])
 
     def commanded(self) -> dict[str, float]:
         """The last commanded target (the measured pose before any command), rounded to 1e-9
@@ -239,11 +247,11 @@ class Simulation:
     def command_joints(self, indices: list[int], values: list[float]) -> None:
         """Set the targets of some joints (indices into :data:`JOINT_NAMES`) to ``values``, arm
         units already checked and inside the limits (the robot's per-action path: no arrays)."""
-        units, act = self.units, self.index.actuator
+        to_radians, act = self.units.joint_to_radians, self._actuator_list
         with self.lock:
             ctrl = self.data.ctrl
             for i, v in zip(indices, values, strict=True):
-                ctrl[act[i]] = units.joint_to_radians(i, v)
+                ctrl[act[i]] = to_radians(i, v)
             self._state.commanded = True
 
     def _set_target(self, q: np.ndarray) -> None:

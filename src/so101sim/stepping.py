@@ -287,13 +287,19 @@ def _block_size(observers: Sequence[Observer], now: float, dt: float, left: int)
 
 
 def hold_steps(
-    m: mujoco.MjModel, d: mujoco.MjData, target: np.ndarray | None, n: int, dt: float = 0.0
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    target: np.ndarray | None,
+    n: int,
+    dt: float = 0.0,
+    scratch: np.ndarray | None = None,
 ) -> int:
     """Step ``n`` times commanding ``target`` (radians, arm joint order; None: the targets in
     ``d.ctrl``), nothing watching: :func:`advance` without observers or trace, in MuJoCo's own
     loop (``mj_step(nstep=k)``, the same physics bit for bit), blocks of at most
     :data:`_CHUNK` steps. Kept lean (a lockstep robot calls it for every action): it reads
-    back only the time. ``dt``: the model's timestep if the caller has it. Returns ``n``.
+    back only the time. ``dt``: the model's timestep if the caller has it; ``scratch``: a
+    buffer of :func:`state_size` floats the caller keeps for it. Returns ``n``.
 
     Divergence: MuJoCo checks every step's positions, velocities and accelerations and resets
     the data when one is bad (not finite, or beyond ``mjMAXVAL``), so a block diverged when its
@@ -306,7 +312,7 @@ def hold_steps(
     """
     if target is not None:
         d.ctrl[arm_index(m).actuator] = target
-    s0 = np.empty(_state_size(m))
+    s0 = scratch if scratch is not None else np.empty(state_size(m))
     dt = dt or m.opt.timestep
     done = 0
     while done < n:
@@ -327,7 +333,7 @@ def hold_steps(
 _state_sizes: weakref.WeakKeyDictionary[mujoco.MjModel, int] = weakref.WeakKeyDictionary()
 
 
-def _state_size(m: mujoco.MjModel) -> int:
+def state_size(m: mujoco.MjModel) -> int:
     """``mj_stateSize`` of the saved state, looked up once per model."""
     size = _state_sizes.get(m)
     if size is None:

@@ -18,7 +18,7 @@ keys (``"shoulder_pan.pos"``); inside, they are NumPy arrays in :data:`JOINT_NAM
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -132,6 +132,14 @@ class ArmUnits:
             low, per_unit = self._gripper
             return low + value * per_unit
         return math.radians(value)
+
+    def values_from_radians(self, q: Sequence[float]) -> list[float]:
+        """Six joint angles in radians (plain floats, JOINT_NAMES order) -> arm units, bit for
+        bit as :meth:`from_radians`, without NumPy (a robot reads its pose on every call)."""
+        out = [math.degrees(x) for x in q]
+        low, per_unit = self._gripper
+        out[GRIPPER_INDEX] = (q[GRIPPER_INDEX] - low) / per_unit
+        return out
 
     def to_radians(self, values: np.ndarray) -> np.ndarray:
         """Arm units (degrees, gripper 0–100) -> joint angles in radians."""
