@@ -84,7 +84,8 @@ def test_two_processes_filling_the_cache_at_once_both_get_the_model(cache):
         """
         from so101sim.model import load_model
         m = load_model()
-        print(m.nq, m.nmesh)
+        p = load_model(physics_only=True)
+        print(m.nq, m.nmesh, p.nmeshface)
         """
     )
     env = {**os.environ, "SO101SIM_CACHE_DIR": str(cache)}
@@ -94,7 +95,8 @@ def test_two_processes_filling_the_cache_at_once_both_get_the_model(cache):
     ]
     outs = [p.communicate(timeout=120)[0].split() for p in procs]
     assert all(p.returncode == 0 for p in procs)
-    assert outs[0] == outs[1] and len(list(cache.glob("*.mjb"))) == 1
+    assert outs[0] == outs[1] and outs[0][2] == "0"  # the physics-only model too
+    assert len(list(cache.glob("*.mjb"))) == 2
     assert not list(cache.glob(".*.partial"))
 
 
