@@ -129,3 +129,24 @@ def test_unchanged_files_are_not_read_again_and_a_changed_one_is(cache, tmp_path
     assert modelcache.key_for(xml) == second
     modelcache.clear()
     assert not list((cache / modelcache.MEMO_FOLDER).glob("*"))
+
+
+def test_a_model_that_cannot_be_trimmed_is_not_tried_again(cache, tmp_path, monkeypatch):
+    (tmp_path / "cloth").mkdir()  # its own folder: the key hashes the model's folder
+    xml = tmp_path / "cloth" / "cloth.xml"
+    xml.write_text(
+        '<mujoco><worldbody><flexcomp name="f" type="grid" count="3 3 1" spacing=".1 .1 .1" '
+        'dim="2"/></worldbody></mujoco>'
+    )
+
+    def compile_cloth():
+        return mujoco.MjModel.from_xml_path(str(xml))
+
+    first = modelcache.load_or_compile(xml, compile_cloth, physics_only=True)
+    assert first.nflex == 1  # the full model: a flex reads the mesh trees
+    assert len(list(cache.glob(f"*{modelcache.REFUSED_SUFFIX}"))) == 1
+    monkeypatch.setattr(modelcache.modeltrim, "physics_only", lambda m: pytest.fail("tried"))
+    again = modelcache.load_or_compile(xml, compile_cloth, physics_only=True)
+    assert again.nflex == 1
+    modelcache.clear()
+    assert not list(cache.glob(f"*{modelcache.REFUSED_SUFFIX}"))

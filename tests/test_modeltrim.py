@@ -1,3 +1,4 @@
+import copy
 import os
 import subprocess
 import sys
@@ -100,6 +101,51 @@ def test_a_model_with_a_flex_keeps_the_full_model():
         dim="2"/></worldbody></mujoco>"""
     )
     assert flex.nflex == 1 and modeltrim.physics_only(flex) is None
+    assert "flex" in modeltrim.why_not(flex)
+
+
+def _scene_with(extra_body: str = "", extension: str = "", sensors: str = "") -> mujoco.MjModel:
+    spec = mujoco.MjSpec.from_file(str(scene_path()))
+    xml = spec.to_xml()
+    xml = xml.replace("<worldbody>", f"{extension}<worldbody>{extra_body}", 1)
+    xml = xml.replace(
+        "</mujoco>", f"<sensor>{sensors}</sensor></mujoco>" if sensors else "</mujoco>"
+    )
+    assets = {}
+    for mesh in spec.meshes:
+        path = scene_path().parent / "assets" / mesh.file
+        assets[mesh.file] = path.read_bytes()
+    return mujoco.MjModel.from_xml_string(xml, assets)
+
+
+def test_ray_casting_sensors_and_sdf_plugins_keep_the_full_model():
+    ranged = _scene_with(
+        extra_body='<site name="eye" pos="0 0 0.5" zaxis="0 0 -1"/>',
+        sensors='<rangefinder site="eye"/>',
+    )
+    assert modeltrim.physics_only(ranged) is None  # rangefinders cast rays at the meshes
+    assert "RANGEFINDER" in modeltrim.why_not(ranged)
+    touching = _scene_with(
+        extra_body='<site name="pad" pos="0 0 0.5" size="0.01"/>',
+        sensors='<framepos objtype="site" objname="pad"/>',
+    )
+    assert modeltrim.why_not(touching) is None and modeltrim.physics_only(touching) is not None
+    sdf = _scene_with(
+        extension='<extension><plugin plugin="mujoco.sdf.torus"><instance name="torus">'
+        '<config key="radius1" value="0.05"/><config key="radius2" value="0.01"/></instance>'
+        '</plugin></extension><asset><mesh name="torus"><plugin instance="torus"/></mesh></asset>',
+        extra_body='<body pos="0.3 0 0.3"><freejoint/><geom type="sdf" mesh="torus">'
+        '<plugin instance="torus"/></geom></body>',
+    )
+    assert modeltrim.physics_only(sdf) is None and modeltrim.why_not(sdf) is not None
+
+
+def test_an_unexpected_error_while_trimming_keeps_the_full_model(full, monkeypatch):
+    def broken(model):
+        raise KeyError("bvh_depth")  # e.g. a field another MuJoCo renamed
+
+    monkeypatch.setattr(modeltrim, "_trimmed_mjb", broken)
+    assert modeltrim.physics_only(full) is None
 
 
 def test_load_model_physics_only_comes_from_its_own_cache_entry(tmp_path, monkeypatch):
@@ -109,7 +155,7 @@ def test_load_model_physics_only_comes_from_its_own_cache_entry(tmp_path, monkey
     monkeypatch.setattr(model_module, "_cache", {})
     m = load_model(physics_only=True)
     assert m.nmeshface == 0 and m.nbvh < 100
-    assert len(list((tmp_path / "cache").glob("*-physics.mjb"))) == 1
+    assert len(list((tmp_path / "cache").glob("*-physics*.mjb"))) == 1
     monkeypatch.setattr(model_module, "_cache", {})
     assert load_model(physics_only=True).nmeshface == 0  # read back from the entry
     assert load_model().nmeshface > 0  # the full model is another entry
@@ -120,7 +166,7 @@ def test_load_model_physics_only_comes_from_its_own_cache_entry(tmp_path, monkey
 
 def test_a_run_that_draws_nothing_uses_the_physics_only_model(tmp_path):
     quiet = prepare_run(LAB_MOTION, headless=True)
-    assert quiet.sim.model.nmeshface == 0
+    assert quiet.sim.model.nmeshface == 0 and modeltrim.is_physics_only(quiet.sim.model)
     video = prepare_run(LAB_MOTION, headless=True, outputs=Outputs(video=tmp_path / "a.mp4"))
     assert video.sim.model.nmeshface > 0  # it is drawn: the full model
     mine = load_model()
@@ -147,3 +193,37 @@ def test_a_headless_command_loads_no_opengl_backend():
         timeout=120,
     )
     assert out.stdout.split() == ["False", "-", "False"], out.stderr
+
+
+def test_drawing_a_physics_only_model_draws_the_full_one_or_says_why(tmp_path):
+    from so101sim.errors import SettingError
+    from so101sim.recording import render_model
+    from so101sim.viewer import open_viewer
+
+    physics = load_model(physics_only=True)
+    physics_data = mujoco.MjData(physics)
+    assert modeltrim.is_physics_only(physics)
+    drawn = render_model(physics, "full", 64, 48)
+    assert drawn.nmeshface > 0 and (drawn.nq, drawn.nbody) == (physics.nq, physics.nbody)
+    assert render_model(physics, "draft", 64, 48).nmeshface > 0
+    stray = copy.copy(physics)  # not from load_model: no file to draw instead
+    with pytest.raises(SettingError, match="physics_only=True"):
+        render_model(stray, "full", 64, 48)
+    with pytest.raises(SettingError, match="mirror=True"), open_viewer(physics, physics_data):
+        pass
+
+
+def test_the_recording_package_still_shows_its_modules():
+    code = (
+        "import so101sim.recording as r; import sys;"
+        "print(r.recorder.__name__, r.video.__name__, 'so101sim.recording.plot' in sys.modules);"
+        "print(r.plot_run.__module__)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == [
+        "so101sim.recording.recorder",
+        "so101sim.recording.video",
+        "True",  # the recorder imports the plot
+        "so101sim.recording.plot",
+    ]

@@ -49,8 +49,10 @@ def load_model(path: str | Path | None = None, *, physics_only: bool = False) ->
     ``physics_only=True``: for runs that never draw and never cast rays (``so101sim run
     --headless``): the model without its mesh triangles and their bounding-volume trees
     (:mod:`so101sim.modeltrim`), the same physics bit for bit in about a fifth of the memory
-    and load time. Do not render it or cast rays at it. When it cannot be made (the disk cache
-    is off, or the model has flex or SDF objects), this is the full model.
+    and load time. Do not cast rays at it (so101sim's renderers draw the full model of the same
+    file instead). When it cannot be made (the disk cache is off, or the model's physics may read
+    what is dropped: flexes, signed-distance fields, plugins, rangefinders), this is the full
+    model.
 
     Raises:
         ModelError: the file does not exist, does not compile, or lacks the SO-101 joints.

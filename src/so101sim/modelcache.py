@@ -43,6 +43,7 @@ MAX_HASHED_BYTES = 512 * 1024 * 1024
 """A model folder larger than this is not cached (hashing it would cost more than compiling)."""
 
 ENTRY_SUFFIX = ".mjb"
+REFUSED_SUFFIX = ".refused"  # a model the physics-only copy was refused for (empty file)
 MEMO_FOLDER = "digests"  # each model folder's content digest, with its files' stat results
 MEMO_SETTLE_S = 2.0  # files changed more recently than this are hashed again next time
 
@@ -82,8 +83,8 @@ def _folder_digest(folder: Path) -> str | None:
         for p, st in stats
     )
     memo = _digest_memo(folder)
-    with contextlib.suppress(OSError, UnicodeDecodeError):
-        digest, _, remembered = memo.read_text().partition("\n")
+    with contextlib.suppress(OSError, ValueError):
+        digest, _, remembered = memo.read_text("utf-8", "surrogateescape").partition("\n")
         if remembered == signature and len(digest) == 64:
             return digest
     h = hashlib.sha256()
@@ -102,8 +103,9 @@ def _folder_digest(folder: Path) -> str | None:
     settled = time.time_ns() - MEMO_SETTLE_S * 1e9
     if all(st.st_ctime_ns < settled and st.st_mtime_ns < settled for _, st in stats):
         try:
-            _write_with(memo, lambda tmp: Path(tmp).write_text(f"{digest}\n{signature}"))
-        except OSError as exc:
+            text = f"{digest}\n{signature}"
+            _write_with(memo, lambda tmp: Path(tmp).write_text(text, "utf-8", "surrogateescape"))
+        except (OSError, ValueError) as exc:
             log.debug("model cache: cannot write %s: %s", memo, exc)
     return digest
 
@@ -192,17 +194,22 @@ def load_or_compile(
 def _physics_only(
     path: Path, compile_fn: Callable[[], mujoco.MjModel], variant: str, key: str
 ) -> mujoco.MjModel:
-    entry = cache_dir() / f"{key}-physics{ENTRY_SUFFIX}"
+    name = f"{key}-physics{modeltrim.VERSION}"
+    entry = cache_dir() / f"{name}{ENTRY_SUFFIX}"
+    refused = cache_dir() / f"{name}{REFUSED_SUFFIX}"  # trimming refused: do not try again
     if entry.is_file():
         model = _read(entry)
         if model is not None:
             log.debug("model cache: loaded %s (physics only) from %s", path, entry)
             return model
     full = load_or_compile(path, compile_fn, variant=variant)
-    data = modeltrim.physics_only(full)
-    if data is None:
+    if refused.is_file():
         return full
+    data = modeltrim.physics_only(full)
     try:
+        if data is None:
+            _write_bytes(refused, b"")
+            return full
         _write_bytes(entry, data)
     except OSError as exc:
         log.debug("model cache: cannot write %s: %s", entry, exc)
@@ -231,6 +238,8 @@ def clear() -> CacheInfo:
     before = info()
     if before.folder.is_dir():
         for f in before.folder.glob(f"*{ENTRY_SUFFIX}"):
+            f.unlink(missing_ok=True)
+        for f in before.folder.glob(f"*{REFUSED_SUFFIX}"):
             f.unlink(missing_ok=True)
         for f in before.folder.glob(".*.partial"):
             f.unlink(missing_ok=True)

@@ -15,8 +15,11 @@ separate) it returns None and the caller keeps the full model. The MJB layout is
 the ``mjxmacro.h`` that ships with the installed MuJoCo, and checked against MuJoCo's own MJB
 of the model before anything is changed.
 
-Do not render a physics-only model or cast rays at it (``mj_ray``, ``mjv_select``): its meshes
-have no triangles to draw or hit.
+Models whose physics may read the dropped arrays are not trimmed (:func:`why_not`: flexes,
+signed-distance fields, plugins, ray-casting sensors such as rangefinders). Do not render a
+physics-only model or cast rays at it yourself (``mj_ray``, ``mjv_select``, a ``mjcb_*``
+callback that does): its meshes have no triangles to draw or hit. so101sim's renderers draw the
+full model of the same file instead (:func:`is_physics_only`).
 """
 
 from __future__ import annotations
@@ -31,6 +34,9 @@ import mujoco
 import numpy as np
 
 log = logging.getLogger(__name__)
+
+VERSION = 1
+"""Part of a physics-only cache entry's name: raised when what is trimmed changes."""
 
 TRIMMED = frozenset(
     {
@@ -199,8 +205,6 @@ def _split(
 
 
 def _trimmed_mjb(model: mujoco.MjModel) -> bytes:
-    if model.nflex or model.nbvhdynamic or model.noct:
-        raise _Unreadable("flex or SDF objects use the mesh trees")
     raw = memoryview(_mjb(model))  # slices of it copy nothing
     sizes, structs, arrays = _split(model, raw)
     body_ends = [
@@ -253,15 +257,60 @@ def _differences(full: mujoco.MjModel, trimmed: mujoco.MjModel) -> list[str]:
 def physics_only(model: mujoco.MjModel) -> bytes | None:
     """The MJB of ``model`` without its mesh faces and mesh trees (:data:`TRIMMED`), checked to
     load and to hold every other array of ``model`` unchanged; None when that cannot be made
-    (the reason is logged at DEBUG)."""
+    or the model may read what is dropped (see :func:`why_not`; the reason is logged at
+    DEBUG)."""
     try:
+        reason = why_not(model)
+        if reason is not None:
+            raise _Unreadable(reason)
         data = _trimmed_mjb(model)
         trimmed = mujoco.MjModel.from_binary_path("trimmed.mjb", {"trimmed.mjb": data})
-    except (_Unreadable, ValueError, mujoco.FatalError) as exc:
+        differ = _differences(model, trimmed)
+        if differ:
+            raise _Unreadable(f"{', '.join(differ)} would differ")
+    # anything unexpected (another MuJoCo's layout, a renamed field): keep the full model
+    except Exception as exc:
         log.debug("physics-only model: not made (%s); keeping the full model", exc)
         return None
-    differ = _differences(model, trimmed)
-    if differ:
-        log.debug("physics-only model: not made, %s would differ", ", ".join(differ))
-        return None
     return data
+
+
+# Sensors that never cast rays at meshes nor read their triangles or trees (an allow-list: a
+# sensor type a later MuJoCo adds keeps the full model until it is known).
+_SAFE_SENSORS = frozenset(
+    {
+        "ACCELEROMETER", "ACTUATORFRC", "ACTUATORPOS", "ACTUATORVEL", "BALLANGVEL", "BALLQUAT",
+        "CAMPROJECTION", "CLOCK", "CONTACT", "E_KINETIC", "E_POTENTIAL", "FORCE",
+        "FRAMEANGACC", "FRAMEANGVEL", "FRAMELINACC", "FRAMELINVEL", "FRAMEPOS", "FRAMEQUAT",
+        "FRAMEXAXIS", "FRAMEYAXIS", "FRAMEZAXIS", "GEOMDIST", "GEOMFROMTO", "GEOMNORMAL",
+        "GYRO", "INSIDESITE", "JOINTACTFRC", "JOINTLIMITFRC", "JOINTLIMITPOS", "JOINTLIMITVEL",
+        "JOINTPOS", "JOINTVEL", "MAGNETOMETER", "SUBTREEANGMOM", "SUBTREECOM", "SUBTREELINVEL",
+        "TENDONACTFRC", "TENDONLIMITFRC", "TENDONLIMITPOS", "TENDONLIMITVEL", "TENDONPOS",
+        "TENDONVEL", "TORQUE", "TOUCH", "VELOCIMETER",
+    }
+)  # fmt: skip
+
+
+def why_not(model: mujoco.MjModel) -> str | None:
+    """Why ``model``'s physics may read its mesh triangles or trees (then it is not trimmed),
+    or None: flexes, signed-distance fields (octrees, SDF geoms), plugins, and sensors that
+    cast rays (rangefinders) or are not known to be safe."""
+    if model.nflex or model.nbvhdynamic:
+        return "it has flex objects"
+    if model.noct or (model.geom_type == mujoco.mjtGeom.mjGEOM_SDF).any():
+        return "it has signed-distance-field geoms"
+    if model.nplugin:
+        return "it uses plugins"
+    kinds = mujoco.mjtSensor
+    safe = {
+        int(getattr(kinds, f"mjSENS_{n}")) for n in _SAFE_SENSORS if hasattr(kinds, f"mjSENS_{n}")
+    }
+    for i, kind in enumerate(model.sensor_type.tolist()):
+        if kind not in safe:
+            return f"its sensor {i} ({mujoco.mjtSensor(kind).name}) may cast rays"
+    return None
+
+
+def is_physics_only(model: mujoco.MjModel) -> bool:
+    """Whether ``model`` is a physics-only copy: meshes without triangles, nothing to draw."""
+    return model.nmesh > 0 and model.nmeshface == 0

@@ -123,13 +123,16 @@ def prepare_run(
     viewer = choose_viewer(headless)
     # nothing will draw it: the physics-only model (same physics, a fifth of the memory)
     draws = viewer.use or (outputs is not None and outputs.video is not None)
-    loaded = (
-        model if isinstance(model, mujoco.MjModel) else load_model(model, physics_only=not draws)
-    )
+
+    def loaded() -> mujoco.MjModel:
+        if isinstance(model, mujoco.MjModel):
+            return model
+        return load_model(model, physics_only=not draws)
+
     if strict:
-        check_strict(loaded, segments, start)
+        check_strict(loaded(), segments, start)
     pacer = Pacer(speed)  # checks the speed before anything opens
-    sim = Simulation(loaded, initial_pose=start)
+    sim = Simulation(loaded(), initial_pose=start)
     # every target and duration, before anything runs (tip moves planned in full)
     validate_segments(sim.model, segments, start=sim.commanded_array())
     recorder = None

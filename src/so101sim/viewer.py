@@ -29,6 +29,7 @@ import mujoco
 import numpy as np
 
 from .errors import SettingError, ViewerError
+from .modeltrim import is_physics_only
 from .validation import check_choice
 
 log = logging.getLogger(__name__)
@@ -296,8 +297,14 @@ def open_viewer(
     Raises:
         ViewerError: no display, or macOS without mjpython (the message says what to do).
         SettingError: ``quality`` is not one of :data:`VIEWER_QUALITIES`, or is ``"draft"``
-            without ``mirror=True``.
+            without ``mirror=True``, or ``m`` is a physics-only model without ``mirror=True``.
     """
+    if not mirror and is_physics_only(m):
+        raise SettingError(
+            "this model was loaded with physics_only=True: its meshes have no triangles to "
+            "draw; open the viewer with mirror=True (it draws the full model of the same file) "
+            "or load the model with so101sim.load_model(path)"
+        )
     _check_can_open(quality, mirror)
     shown_m, shown_d = m, d
     if mirror:

@@ -95,7 +95,25 @@ if TYPE_CHECKING:  # for type checkers and editors; at run time names load on fi
     from .video import VIDEO_SUFFIXES, VideoRecorder, video_frames
 
 
+_SUBMODULES = frozenset(
+    [
+        "csvlog",
+        "draft",
+        "encoder",
+        "envelope",
+        "frames",
+        "paths",
+        "plot",
+        "recorder",
+        "settings",
+        "video",
+    ]
+)
+
+
 def __getattr__(name: str) -> Any:
+    if name in _SUBMODULES:  # so101sim.recording.video etc., as when they were imported here
+        return importlib.import_module(f".{name}", __name__)
     module = _LAZY.get(name)
     if module is None:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
@@ -105,7 +123,7 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+    return sorted(set(globals()) | set(_LAZY) | _SUBMODULES)
 
 
 __all__ = [

@@ -22,7 +22,9 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from ..errors import SettingError
 from ..model import load_model, loaded_models, model_dir, model_source
+from ..modeltrim import is_physics_only
 from ..scenes import scene_builder
 from .settings import check_quality
 
@@ -234,6 +236,20 @@ def _draft_model(model: mujoco.MjModel) -> mujoco.MjModel:
     return model
 
 
+def _drawable(model: mujoco.MjModel) -> mujoco.MjModel:
+    """``model``, or for a physics-only model (no mesh triangles) the full model of its file,
+    which has the same bodies and joints."""
+    if not is_physics_only(model):
+        return model
+    source = model_source(model)
+    if source is None:
+        raise SettingError(
+            "this model was loaded with physics_only=True: its meshes have no triangles to "
+            "draw; load it with so101sim.load_model(path) to draw it"
+        )
+    return load_model(source)
+
+
 def render_model(model: mujoco.MjModel, quality: str, width: int, height: int) -> mujoco.MjModel:
     """A private model to draw ``model``'s state with, at ``quality``, its offscreen buffer at
     least ``width`` × ``height``. Same bodies and joints as ``model``; the physics model itself
@@ -245,6 +261,7 @@ def render_model(model: mujoco.MjModel, quality: str, width: int, height: int) -
     model's own meshes, with a logged warning. ``full``: a copy of ``model`` as it is.
     """
     check_quality(quality)
+    model = _drawable(model)
     rm = copy.copy(_draft_model(model) if quality == "draft" else model)
     rm.vis.global_.offwidth = max(int(rm.vis.global_.offwidth), width)
     rm.vis.global_.offheight = max(int(rm.vis.global_.offheight), height)
