@@ -130,3 +130,36 @@ def test_signals_at_random_points_leave_playable_files_and_no_temporary_ones(tmp
     assert [o.problems for o in outcomes] == [[] for _ in plans]
     assert [o.code for o in outcomes] == [128 + p[0] for p in plans]
     assert all(o.frames and o.rows for o in outcomes)  # each had begun: video and log kept
+
+
+def test_a_signal_inside_a_c_call_still_ends_as_that_signal(monkeypatch, tmp_path, capsys):
+    """A signal that lands while ctypes converts a C call's argument (PyOpenGL's EGL calls
+    while a frame renders) comes out as ctypes.ArgumentError, not as the Interrupted the
+    handler raised: it must still finish the files and exit 128 + the signal."""
+    import ctypes
+
+    from so101sim.recording.frames import FrameRenderer
+
+    class SignalledArgument:
+        @classmethod
+        def from_param(cls, value):
+            os.kill(os.getpid(), signal.SIGTERM)  # the handler raises here, inside ctypes
+            return value
+
+    c_abs = ctypes.CDLL(None).abs
+    c_abs.argtypes = [SignalledArgument]
+    render = FrameRenderer.render
+    calls = []
+
+    def render_then_call_c(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) == 5:
+            c_abs(1)
+        return render(self, *args, **kwargs)
+
+    monkeypatch.setattr(FrameRenderer, "render", render_then_call_c)
+    assert cli.main(_record(tmp_path)) == 128 + signal.SIGTERM
+    captured = capsys.readouterr()
+    assert "interrupted (SIGTERM)" in captured.err
+    assert count_frames(tmp_path / "h.mp4") == 4 and "wrote the video so far" in captured.out
+    assert csv_problems(tmp_path / "h.csv") == [] and no_partial_files(tmp_path)

@@ -121,11 +121,13 @@ class _Signals:
     def __init__(self) -> None:
         self.finishing = False
         self.waiting: list[int] = []
+        self.raised: int | None = None  # the signal last raised as Interrupted
         self._raised_at = -math.inf
         self._previous: dict[int, Any] = {}
 
     def __enter__(self) -> _Signals:
         self.finishing, self.waiting, self._raised_at = False, [], -math.inf
+        self.raised = None
         if threading.current_thread() is threading.main_thread():
             for name in self.NAMES:
                 if (signum := getattr(signal, name, None)) is not None:
@@ -141,6 +143,7 @@ class _Signals:
         now = time.monotonic()
         if not self.finishing and now - self._raised_at > 1.0:
             self._raised_at = now
+            self.raised = signum
             raise Interrupted(signum)
         self.waiting.append(signum)
         if len(self.waiting) >= 3:
@@ -557,6 +560,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             signum = getattr(exc, "signum", signal.SIGINT)
             _say(f"so101sim: interrupted ({_signal_name(signum)})", err=True)
             return 128 + signum
+        except Exception:
+            # A signal's Interrupted raised inside a C call's argument conversion comes out as
+            # that library's error (ctypes.ArgumentError "argument 1: Interrupted: 15" from
+            # PyOpenGL's EGL calls); the files were finished as for any error: it was the signal.
+            if SIGNALS.raised is None:
+                raise
+            _say(f"so101sim: interrupted ({_signal_name(SIGNALS.raised)})", err=True)
+            return 128 + SIGNALS.raised
         if SIGNALS.waiting:  # came while the files were finished
             signum = SIGNALS.waiting[0]
             _say(f"so101sim: interrupted ({_signal_name(signum)})", err=True)
