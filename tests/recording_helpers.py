@@ -123,6 +123,19 @@ def _check_outputs(folder: Path, printed: str, outcome: Outcome) -> None:
         outcome.problems.append("h.png does not open")
 
 
+def _stepping(run: Path) -> bool:
+    """Whether the recording in ``run`` has stepped: its partial log holds a row (the log file
+    exists from the start, before the first frame is drawn, which on a busy machine can take
+    longer than the delay before the signal)."""
+    for partial in run.glob(".h.*.partial.csv"):
+        try:
+            if partial.read_text().count("\n") >= 2:  # the header and a row
+                return True
+        except OSError:  # renamed meanwhile
+            pass
+    return False
+
+
 def _wait_for(condition, timeout: float = 300.0) -> None:
     end = time.monotonic() + timeout
     while not condition():
@@ -179,7 +192,7 @@ def interrupt_recordings(
         for i, plan in enumerate(plans):
             run = folder / f"run{i}"
             printed = start(run, "60")
-            _wait_for(lambda run=run: any(run.glob(".h.*.partial.csv")))  # stepping began
+            _wait_for(lambda run=run: _stepping(run))
             time.sleep(rng.uniform(*delay))
             for k, sig in enumerate(plan):
                 if k:
