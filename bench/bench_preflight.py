@@ -12,9 +12,9 @@ import time
 
 from so101sim.model import load_model
 from so101sim.motion import run_motion
-from so101sim.motionfile import lab_motion_path, load_motion
+from so101sim.motion.file import lab_motion_path, load_motion
 from so101sim.preflight import preflight
-from so101sim.simulation import Simulation
+from so101sim.sim.simulation import Simulation
 
 
 def best_of(fn, repeats: int = 5) -> float:

@@ -123,7 +123,7 @@ def lockstep(ticks: int, rounds: int = 7) -> None:
 def preflight(count: int) -> None:
     from bench_variants import compare
 
-    from so101sim.motionfile import lab_motion_path
+    from so101sim.motion.file import lab_motion_path
 
     print(f"3. robust preflight of {count} lab variants against a raw rollout of them:")
     compare(count, lab_motion_path(), indent="   ")

@@ -17,11 +17,11 @@ import threading
 import time
 
 from so101sim.model import scene_path
-from so101sim.motionfile import lab_motion_path, load_motion
-from so101sim.preflight_judge import Thresholds
-from so101sim.preflight_rollout import Worker, plan_motion, sensor_model
-from so101sim.preflight_variants import check_variants
-from so101sim.variants import sample_variants
+from so101sim.motion.file import lab_motion_path, load_motion
+from so101sim.preflight.judge import Thresholds
+from so101sim.preflight.robust import check_variants
+from so101sim.preflight.rollout import Worker, plan_motion, sensor_model
+from so101sim.preflight.variants import sample_variants
 
 
 def raw_rollout(base, plan, variants, threads: int) -> None:

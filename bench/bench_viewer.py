@@ -31,15 +31,15 @@ from collections.abc import Iterator
 
 import numpy as np
 
-import so101sim.robot_threads
-import so101sim.viewer
+import so101sim.robot.threads
+import so101sim.viewer.passive
 from so101sim import gl
 from so101sim.robot import SO101SimFollower, SO101SimFollowerConfig
-from so101sim.simulation import Pacer, Simulation
+from so101sim.sim.simulation import Pacer, Simulation
 from so101sim.viewer import open_viewer
 
 OFFER_HZ = 240.0
-NICE = so101sim.viewer.VIEWER_NICE
+NICE = so101sim.viewer.passive.VIEWER_NICE
 
 
 @contextlib.contextmanager
@@ -104,12 +104,12 @@ def recording_pacers() -> Iterator[list[LatenessPacer]]:
         made.append(LatenessPacer(*args, **kw))
         return made[-1]
 
-    saved = so101sim.robot_threads.Pacer
-    so101sim.robot_threads.Pacer = make
+    saved = so101sim.robot.threads.Pacer
+    so101sim.robot.threads.Pacer = make
     try:
         yield made
     finally:
-        so101sim.robot_threads.Pacer = saved
+        so101sim.robot.threads.Pacer = saved
 
 
 def lag_line(what: str, late: list[tuple[float, float]], skip_s: float, extra: str = "") -> str:
@@ -125,7 +125,7 @@ def lag_line(what: str, late: list[tuple[float, float]], skip_s: float, extra: s
 
 def robot_lag(quality: str | None, seconds: float, nice: int = NICE) -> str:
     viewer = quality is not None
-    so101sim.viewer.VIEWER_NICE = nice  # read when the viewer opens; put back by main()
+    so101sim.viewer.passive.VIEWER_NICE = nice  # read when the viewer opens; put back by main()
     cfg = SO101SimFollowerConfig(viewer=viewer, viewer_quality=quality or "auto")
     with recording_pacers() as pacers:
         robot = SO101SimFollower(cfg)
@@ -185,7 +185,7 @@ def main() -> None:
             for quality in ("draft", "full"):
                 for nice in (NICE, 0):
                     print(robot_lag(quality, a.seconds, nice), flush=True)
-        so101sim.viewer.VIEWER_NICE = NICE
+        so101sim.viewer.passive.VIEWER_NICE = NICE
         print(previous_design_lag(a.seconds), flush=True)
 
 

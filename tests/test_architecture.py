@@ -10,7 +10,6 @@ import ast
 import os
 import subprocess
 import sys
-from fnmatch import fnmatch
 from pathlib import Path
 
 import pytest
@@ -19,52 +18,23 @@ import so101sim
 
 PACKAGE = Path(so101sim.__file__).parent
 
-# (layer, module patterns), lowest first: a module may import modules of its own layer or below.
+# (layer, packages and top-level modules), lowest first: a module may import modules of its own
+# layer or below. A package's name stands for it and all its modules (docs/architecture.md).
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
-    ("errors/validation", ("errors", "validation", "gl", "simclock")),
+    ("base", ("errors", "validation", "gl", "_compat")),
     ("units", ("units",)),
-    ("model", ("model", "modelcache", "modeltrim", "variants")),
-    ("planning", ("profiles", "trajectory", "kinematics", "kinematics.*")),
-    ("simulation", ("simulation", "stepping")),
-    ("motion", ("motion", "motionfile", "motionfile_*")),
-    (
-        "outputs",
-        (
-            "recording",
-            "recording.*",
-            "viewer",
-            "preflight",
-            "preflight.*",
-            "preflight_*",
-            "distributed",
-            "posefinder",
-            "framing",
-            "scenes",
-            "cameras",
-            "scenes.*",
-            "cameras",
-        ),
-    ),
-    (
-        "apps",
-        (
-            "lab",
-            "robot",
-            "robot_*",
-            "robot.*",
-            "teleop",
-            "teleop.*",
-            "teleop_*",
-            "envs",
-            "envs.*",
-            "runplan",
-            "record_script",
-            "handin",
-            "starter",
-        ),
-    ),
-    ("cli", ("cli", "cli_*", "__main__")),
+    ("model", ("model",)),
+    ("kinematics", ("kinematics",)),
+    ("sim", ("sim",)),
+    ("motion", ("motion",)),
+    ("outputs", ("recording", "viewer", "preflight", "scenes")),
+    ("apps", ("lab", "robot", "envs")),
+    ("cli", ("cli", "__main__")),
 ]
+
+# The only modules allowed at the top of the package: everything else lives in a subpackage of
+# its layer (a new flat module, or a family of them, fails test_no_flat_modules).
+TOP_LEVEL_MODULES = {"errors", "validation", "units", "gl", "_compat", "_lazy", "__main__"}
 
 
 def _modules() -> dict[str, Path]:
@@ -80,10 +50,20 @@ def _modules() -> dict[str, Path]:
 
 
 def _layer(module: str) -> int:
-    for i, (_, patterns) in enumerate(LAYERS):
-        if any(fnmatch(module, pat) for pat in patterns):
+    top = module.split(".")[0]
+    for i, (_, names) in enumerate(LAYERS):
+        if top in names:
             return i
     raise AssertionError(f"module so101sim.{module} has no layer: add it to docs/architecture.md")
+
+
+def _from_names(base: list[str], node: ast.ImportFrom, known: set[str]) -> list[str]:
+    """What ``from <base> import a, b`` uses: the modules a and b where they are modules
+    (``from . import trim``), else the package ``base`` itself (its names)."""
+    modules = [".".join([*base, a.name]) for a in node.names]
+    if all(m in known for m in modules):
+        return modules
+    return [".".join(base), *modules]
 
 
 def _imports(module: str, path: Path, known: set[str]) -> set[str]:
@@ -96,10 +76,9 @@ def _imports(module: str, path: Path, known: set[str]) -> set[str]:
             base = pkg[: len(pkg) - node.level + 1] + (
                 node.module.split(".") if node.module else []
             )
-            names = [".".join(base)] + [".".join([*base, a.name]) for a in node.names]
+            names = _from_names(base, node, known)
         elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("so101sim"):
-            base = node.module.split(".")[1:]
-            names = [".".join(base)] + [".".join([*base, a.name]) for a in node.names]
+            names = _from_names(node.module.split(".")[1:], node, known)
         elif isinstance(node, ast.Import):
             names = [a.name.split(".", 1)[1] for a in node.names if a.name.startswith("so101sim.")]
         found |= {n for n in names if n in known and n != module}
@@ -116,6 +95,55 @@ def test_every_module_has_a_layer():
         _layer(m)
 
 
+def test_no_flat_modules():
+    flat = sorted(m for m in _modules() if "." not in m and (PACKAGE / f"{m}.py").is_file())
+    extra = sorted(set(flat) - TOP_LEVEL_MODULES)
+    assert not extra, (
+        f"flat modules {extra} at the top of so101sim: put each in the subpackage of its "
+        "layer (docs/architecture.md), or, for a base module, add it to TOP_LEVEL_MODULES"
+    )
+
+
+def test_every_package_says_what_it_may_import():
+    for init in sorted(PACKAGE.glob("*/__init__.py")):
+        doc = ast.get_docstring(ast.parse(init.read_text(encoding="utf-8"))) or ""
+        assert doc, f"so101sim.{init.parent.name} has no docstring"
+
+
+def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """A cycle of ``graph`` (node -> nodes it points to), or None."""
+    state: dict[str, int] = {}  # 1: on the current path, 2: done
+    path: list[str] = []
+
+    def visit(m: str) -> list[str] | None:
+        state[m] = 1
+        path.append(m)
+        for n in sorted(graph.get(m, ())):
+            if state.get(n) == 1:
+                return [*path[path.index(n) :], n]
+            if n not in state and (cycle := visit(n)):
+                return cycle
+        path.pop()
+        state[m] = 2
+        return None
+
+    for m in sorted(graph):
+        if m not in state and (cycle := visit(m)):
+            return cycle
+    return None
+
+
+def test_packages_import_each_other_without_a_cycle():
+    """Within a layer, packages may use each other, one way only (viewer -> recording)."""
+    packages: dict[str, set[str]] = {}
+    for a, targets in _graph().items():
+        packages.setdefault(a.split(".")[0], set()).update(
+            b.split(".")[0] for b in targets if b.split(".")[0] != a.split(".")[0]
+        )
+    cycle = _cycle(packages)
+    assert cycle is None, "packages importing each other: " + " -> ".join(cycle or [])
+
+
 def test_imports_only_point_down_the_layers():
     upward = [
         f"so101sim.{a} ({LAYERS[_layer(a)][0]}) imports so101sim.{b} ({LAYERS[_layer(b)][0]})"
@@ -127,25 +155,15 @@ def test_imports_only_point_down_the_layers():
 
 
 def test_no_import_cycle():
-    graph = _graph()
-    state: dict[str, int] = {}  # 1: on the current path, 2: done
-    path: list[str] = []
+    cycle = _cycle(_graph())
+    assert cycle is None, "import cycle: " + " -> ".join(cycle or [])
 
-    def visit(m: str) -> list[str] | None:
-        state[m] = 1
-        path.append(m)
-        for n in sorted(graph[m]):
-            if state.get(n) == 1:
-                return [*path[path.index(n) :], n]
-            if n not in state and (cycle := visit(n)):
-                return cycle
-        path.pop()
-        state[m] = 2
-        return None
 
-    for m in sorted(graph):
-        if m not in state and (cycle := visit(m)):
-            pytest.fail("import cycle: " + " -> ".join(cycle))
+def test_the_checks_fail_on_a_flat_module_and_a_cycle():
+    assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert _cycle({"a": {"b"}, "b": set()}) is None
+    with pytest.raises(AssertionError, match="has no layer"):
+        _layer("robot_arm")  # a new flat family has no layer until it is given a package
 
 
 def test_the_cycle_finder_finds_a_lazy_cycle(tmp_path):
@@ -167,9 +185,39 @@ def test_importing_the_package_is_light_and_sets_nothing():
 
 
 def test_lazy_names_resolve_to_their_modules():
-    from so101sim.simulation import Simulation
+    from so101sim.sim.simulation import Simulation
 
     assert so101sim.Simulation is Simulation
     assert set(so101sim.__all__) <= set(dir(so101sim))
     with pytest.raises(AttributeError, match="no attribute 'Nope'"):
         _ = so101sim.Nope
+
+
+def test_old_module_paths_are_the_new_modules_with_a_warning():
+    import importlib
+    import warnings
+
+    from so101sim._compat import MOVED
+
+    for old, new in sorted(MOVED.items()):
+        sys.modules.pop(old, None)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            module = importlib.import_module(old)
+        assert module is importlib.import_module(new), old
+        assert module.__name__ == new and module.__spec__.name == new
+        assert any(
+            issubclass(w.category, DeprecationWarning) and new in str(w.message) for w in caught
+        ), old
+    with pytest.warns(DeprecationWarning, match="so101sim.sim.simulation"):
+        sys.modules.pop("so101sim.simulation", None)
+        from so101sim.simulation import Simulation  # the old path, on purpose
+    assert Simulation is so101sim.sim.Simulation
+
+
+def test_unknown_old_paths_still_fail():
+    import importlib
+
+    for name in ("so101sim.nope", "so101sim.robot_nope", "so101sim.sim.nope"):
+        with pytest.raises(ModuleNotFoundError):
+            importlib.import_module(name)

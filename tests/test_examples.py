@@ -28,6 +28,7 @@ def run(name: str, *args: str, cwd: Path | None = None) -> str:
     return out.stdout
 
 
+@pytest.mark.slow
 def test_lab_motion_example_ends_at_the_start_pose():
     out = run("lab_motion.py")
     assert "t = 6.000 s" in out
@@ -39,6 +40,7 @@ def test_lab_hold_start_example():
     assert "held for 30.0 s" in run("lab_hold_start.py")
 
 
+@pytest.mark.slow
 def test_clean_api_example():
     out = run("clean_api.py")
     assert "to_zero  1000 steps" in out and "ends t=6.000 s" in out
@@ -51,6 +53,7 @@ def _pose_line(out: str, label: str) -> dict[str, float]:
     return {k: float(v) for k, v in re.findall(r"(\w+)=(-?[\d.]+)", line)}
 
 
+@pytest.mark.slow
 def test_hardware_style_example_in_lockstep_goes_to_zeros_and_back():
     out = run("hardware_style.py", "--mode", "lockstep")
     start, zeros, back = (_pose_line(out, x) for x in ("start", "zeros", "back"))
@@ -60,6 +63,7 @@ def test_hardware_style_example_in_lockstep_goes_to_zeros_and_back():
     assert back == pytest.approx(STARTING_POSE, abs=0.5)
 
 
+@pytest.mark.slow
 def test_record_lab_example_writes_video_plot_and_log_where_it_runs(tmp_path):
     import imageio.v2 as imageio
     import imageio_ffmpeg
@@ -80,6 +84,7 @@ def test_record_lab_example_writes_video_plot_and_log_where_it_runs(tmp_path):
     assert imageio.imread(tmp_path / "record_lab.png").ndim == 3
 
 
+@pytest.mark.slow
 def test_check_then_run_example_runs_from_any_folder(tmp_path):
     out = run("check_then_run.py", cwd=tmp_path)  # its default wave.toml is found all the same
     assert "PASS" in out
@@ -87,6 +92,7 @@ def test_check_then_run_example_runs_from_any_folder(tmp_path):
     assert ends[0][0] == "raise" and ends[-1] == ("fold", "8.500")
 
 
+@pytest.mark.slow
 def test_compare_profiles_example_ranks_the_profiles():
     out = run("compare_profiles.py")
     rows = {}

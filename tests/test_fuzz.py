@@ -27,15 +27,16 @@ import string
 from pathlib import Path
 from typing import Any
 
+import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from so101sim import cli
 from so101sim.errors import CalibrationError, MotionFileError
-from so101sim.motionfile import MotionFile, load_motion, parse_motion
-from so101sim.motionfile_lines import count_lines
-from so101sim.profiles import MAX_MOVE_DURATION_S
-from so101sim.teleop import load_calibration
+from so101sim.motion.file import MotionFile, load_motion, parse_motion
+from so101sim.motion.lines import count_lines
+from so101sim.robot.teleop import load_calibration
+from so101sim.sim.profiles import MAX_MOVE_DURATION_S
 from so101sim.units import JOINT_NAMES
 from so101sim.validation import MAX_DURATION_S
 
@@ -239,6 +240,7 @@ def _load(text: str) -> MotionFile | None:
     return motion
 
 
+@pytest.mark.slow
 @FAST
 @given(motion_texts())
 def test_motion_file_texts_load_or_raise_motion_file_error(text):

@@ -98,6 +98,7 @@ def test_importing_sets_no_environment_variable():
     assert _run_python(code) == "None"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mujoco_first", [False, True])
 def test_rendering_chooses_a_backend_when_asked_for(mujoco_first):
     code = (

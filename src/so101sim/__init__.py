@@ -8,6 +8,7 @@ Start with :class:`Simulation`, the lab's helpers in :mod:`so101sim.lab`, or the
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from . import _compat
 from .errors import (
     CalibrationError,
     CameraError,
@@ -46,12 +47,12 @@ _LAZY: dict[str, str] = {
     "RunResult": "motion",
     "Segment": "motion",
     "run_motion": "motion",
-    "Pacer": "simulation",
-    "SegmentResult": "simulation",
-    "Simulation": "simulation",
-    "MotionFile": "motionfile",
-    "lab_motion_path": "motionfile",
-    "load_motion": "motionfile",
+    "Pacer": "sim",
+    "SegmentResult": "sim",
+    "Simulation": "sim",
+    "MotionFile": "motion.file",
+    "lab_motion_path": "motion.file",
+    "load_motion": "motion.file",
     "PreflightReport": "preflight",
     "Thresholds": "preflight",
     "check_motion_file": "preflight",
@@ -59,8 +60,8 @@ _LAZY: dict[str, str] = {
     "Recorder": "recording",
     "VideoSettings": "recording",
     "plot_run": "recording",
-    "record": "handin",
-    "RecordingViewer": "handin",
+    "record": "lab.handin",
+    "RecordingViewer": "lab.handin",
     "SO101SimFollower": "robot",
     "SO101SimFollowerConfig": "robot",
     "JOINT_NAMES": "units",
@@ -69,15 +70,18 @@ _LAZY: dict[str, str] = {
 }
 
 if TYPE_CHECKING:
-    from .handin import RecordingViewer, record
+    from .lab.handin import RecordingViewer, record
     from .model import load_model, model_dir, scene_path
     from .motion import LAB_MOTION, Hold, Move, RunResult, Segment, run_motion
-    from .motionfile import MotionFile, lab_motion_path, load_motion
+    from .motion.file import MotionFile, lab_motion_path, load_motion
     from .preflight import PreflightReport, Thresholds, check_motion_file, preflight
     from .recording import Recorder, VideoSettings, plot_run
     from .robot import SO101SimFollower, SO101SimFollowerConfig
-    from .simulation import Pacer, SegmentResult, Simulation
+    from .sim import Pacer, SegmentResult, Simulation
     from .units import JOINT_NAMES, STARTING_POSE, ZERO_POSE
+
+
+_compat.install()  # old module paths (so101sim.simulation, ...) keep working for one release
 
 
 def __getattr__(name: str) -> Any:

@@ -1,6 +1,6 @@
 """``SO101SimCamera``: a camera of the ``so101_sim`` robot's scene as a LeRobot ``Camera``.
 
-It renders through the robot's :class:`so101sim.robot_cameras.SimCamera`, so it exists only as
+It renders through the robot's :class:`so101sim.robot.cameras.SimCamera`, so it exists only as
 part of that robot (``--robot.cameras='{front: {type: so101_sim}}'``) and connects and
 disconnects with it. ``read()``, ``async_read()`` and ``read_latest()`` return (height, width,
 3) uint8 RGB frames of the simulation's present state.
@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 from lerobot.cameras import Camera
 
-from so101sim.robot_cameras import SimCamera
+from so101sim.robot.cameras import SimCamera
 
 from .config_so101sim import SO101SimCameraConfig
 from .errors import DeviceNotConnectedError, SimCameraError, raises_lerobot_errors

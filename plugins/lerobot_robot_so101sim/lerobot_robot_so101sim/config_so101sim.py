@@ -23,7 +23,7 @@ from lerobot.teleoperators import TeleoperatorConfig
 
 from so101sim.errors import RobotConfigError
 from so101sim.model import arm_units, load_model
-from so101sim.motionfile import load_motion
+from so101sim.motion.file import load_motion
 from so101sim.robot import SO101SimFollowerConfig
 from so101sim.units import STARTING_POSE
 from so101sim.validation import check_choice, check_count, check_range
@@ -71,7 +71,7 @@ class SO101SimCameraConfig(CameraConfig):
     quality: str = "auto"
 
     def sim_settings(self) -> dict[str, Any]:
-        """The fields given, as so101sim's camera settings (``so101sim.robot_cameras``)."""
+        """The fields given, as so101sim's camera settings (``so101sim.robot.cameras``)."""
         names = ("fps", "width", "height", "pos", "lookat", "up", "fovy", "body", "quality")
         return {n: getattr(self, n) for n in names if getattr(self, n) is not None}
 

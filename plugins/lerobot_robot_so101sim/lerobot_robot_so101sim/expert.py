@@ -5,7 +5,7 @@ real demonstrations on the simulated arm.
 It drives the ``so101_sim`` robot with the task's scene (``--robot.scene=pick_cube``,
 ``--robot.mode=lockstep``): LeRobot gives a teleoperator no handle on the robot, so it finds
 the robot's :class:`~so101sim.robot.SO101SimFollower` in so101sim's registry of connected
-followers (:mod:`so101sim.robot_scene`): the one that connects after it (``lerobot-record``
+followers (:mod:`so101sim.robot.scene`): the one that connects after it (``lerobot-record``
 connects the teleoperator first), or one already connected, at the latest on the first
 ``get_action()``. Each ``get_action()`` is the expert's next joint targets
 (``"<joint>.pos"``: degrees, gripper 0..100), planned from the arm's commanded targets and the
@@ -39,8 +39,8 @@ from so101sim.envs import expert_for, sim_task
 from so101sim.envs.expert import ScriptedExpert
 from so101sim.envs.scene_state import SimTask
 from so101sim.errors import So101SimError
-from so101sim.robot_helpers import MOTOR_KEYS
-from so101sim.robot_scene import RobotScene, find_follower, robot_scene, when_connected
+from so101sim.robot.helpers import MOTOR_KEYS
+from so101sim.robot.scene import RobotScene, find_follower, robot_scene, when_connected
 
 from .config_so101sim import EXPERT_TELEOP_TYPE, SO101SimExpertConfig
 from .errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, lerobot_errors

@@ -34,7 +34,7 @@ from gymnasium import spaces
 from ..errors import SettingError, SimulationDivergedError, ViewerError
 from ..recording import FREE_CAMERA, QUALITY_CHOICES, FrameRenderer, VideoSettings
 from ..recording.settings import check_quality
-from ..robot_config import GRIPPER_TORQUE_FRACTION
+from ..robot.config import GRIPPER_TORQUE_FRACTION
 from ..scenes import (
     PRESET_CAMERAS,
     VisualJitter,
@@ -45,7 +45,7 @@ from ..scenes import (
     preset_scene,
     sample_placements,
 )
-from ..simulation import Simulation
+from ..sim.simulation import Simulation
 from ..units import JOINT_NAMES, LIMIT_TOLERANCE, STARTING_POSE, Pose
 from ..validation import check_choice, check_count, check_range
 from .actions import ActionMap, ControlSettings

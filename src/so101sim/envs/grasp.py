@@ -26,8 +26,8 @@ from dataclasses import dataclass, replace
 import mujoco
 import numpy as np
 
-from ..model import arm_index
-from ..robot_config import GRIPPER_TORQUE_FRACTION
+from ..model.load import arm_index
+from ..robot.config import GRIPPER_TORQUE_FRACTION
 from ..scenes import (
     ContactSettings,
     SceneObject,
@@ -37,7 +37,7 @@ from ..scenes import (
     preset_scene,
     sample_placements,
 )
-from ..simulation import Observer, Simulation
+from ..sim.simulation import Observer, Simulation
 from ..units import GRIPPER_INDEX
 from ..validation import check_count, check_duration, check_range
 from .planning import CLOSED_GRIPPER, OPEN_GRIPPER, top_grasp

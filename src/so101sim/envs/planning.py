@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 
 from ..kinematics import plan_line, solve_ik, tip_pose
-from ..profiles import fractions
+from ..sim.profiles import fractions
 from ..units import GRIPPER_INDEX
 
 GRASP_PITCH = -90.0

@@ -1,12 +1,12 @@
 """What the tasks and their scripted experts read of a table-top scene being simulated.
 
 :class:`SceneState` holds a compiled scene (``model``, its :class:`~so101sim.scenes.TableScene`)
-and the :class:`~so101sim.simulation.Simulation` that steps it, and reads from them the
+and the :class:`~so101sim.sim.simulation.Simulation` that steps it, and reads from them the
 objects' poses (now and at the start of the episode), the jaws' contacts and the point
 between the jaws. The environments (:class:`so101sim.envs.So101TaskEnv`) are scene states; so
 is :class:`SimTask`, a task on a simulation that something else steps (the simulated
 follower of :mod:`so101sim.robot` in a scene preset, driven by a scripted expert: see
-:mod:`so101sim.robot_scene`), so the same success test and the same expert serve both.
+:mod:`so101sim.robot.scene`), so the same success test and the same expert serve both.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import numpy as np
 
 from ..errors import SettingError
 from ..scenes import TableScene, object_qpos
-from ..simulation import Simulation
+from ..sim.simulation import Simulation
 from ..validation import check_range
 from .actions import ActionMap, ControlSettings
 

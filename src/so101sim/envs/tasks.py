@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import SettingError
 from ..scenes import SCENE_PRESETS, TableScene, object_qvel
-from ..simulation import Simulation
+from ..sim.simulation import Simulation
 from .base import Evaluation, So101TaskEnv
 from .scene_state import SceneState, SimTask
 

@@ -31,7 +31,7 @@ import mujoco
 import numpy as np
 
 from ..errors import JointLimitError, JointValueError, ModelError
-from ..model import ArmIndex, arm_index, arm_units, load_model
+from ..model.load import ArmIndex, arm_index, arm_units, load_model
 from ..units import BODY_JOINTS, JOINT_NAMES, ArmUnits, Pose
 
 TIP_SITE = "gripperframe"

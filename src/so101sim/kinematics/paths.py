@@ -160,7 +160,7 @@ def plan_line(
     in arm units) puts it to ``target`` (metres, base frame).
 
     ``steps``: the number of targets (row ``i`` at fraction ``(i + 1) / n``: the first has
-    already moved, the last is the end, as :mod:`so101sim.profiles` plans a move), or the
+    already moved, the last is the end, as :mod:`so101sim.sim.profiles` plans a move), or the
     fractions themselves (e.g. a minimum-jerk profile's, to start and stop smoothly).
     ``pitch``, ``approach``, ``roll`` or ``rotation`` (see
     :func:`~so101sim.kinematics.solve_ik`) are the orientation asked at the end; along the line

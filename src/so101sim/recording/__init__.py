@@ -1,6 +1,6 @@
 """Recording a run: an MP4 video, a plot of commanded vs measured angles, and a CSV log.
 
-Everything here is an :class:`so101sim.simulation.Observer`, so any run of moves and holds can
+Everything here is an :class:`so101sim.sim.simulation.Observer`, so any run of moves and holds can
 write to it, and all of it is clocked by *simulated* time: a 6 s motion at 30 frames/s is
 181 frames (t = 0, 1/30, …, 6 s) however fast the machine renders.
 

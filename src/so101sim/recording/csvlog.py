@@ -16,8 +16,8 @@ from typing import IO, NoReturn
 import mujoco
 import numpy as np
 
-from ..model import arm_units
-from ..simulation import Observer, Trace
+from ..model.load import arm_units
+from ..sim.simulation import Observer, Trace
 from ..units import JOINT_NAMES
 from .paths import PendingFile, check_output_path, write_error
 

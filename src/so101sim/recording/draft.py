@@ -23,8 +23,8 @@ import mujoco
 import numpy as np
 
 from ..errors import SettingError
-from ..model import load_model, loaded_models, model_dir, model_source
-from ..modeltrim import is_physics_only
+from ..model.load import load_model, loaded_models, model_dir, model_source
+from ..model.trim import is_physics_only
 from ..scenes import scene_builder
 from .settings import check_quality
 

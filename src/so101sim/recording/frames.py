@@ -16,8 +16,8 @@ import numpy as np
 
 from .. import gl
 from ..errors import RenderBackendError
-from ..framing import view_for_run, workspace_frames
 from .draft import render_model
+from .framing import view_for_run, workspace_frames
 from .settings import FREE_CAMERA, VideoSettings, check_camera, resolve_quality
 
 

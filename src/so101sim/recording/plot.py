@@ -15,8 +15,8 @@ import mujoco
 import numpy as np
 
 from ..errors import RecordingError
-from ..model import arm_units
-from ..simulation import Observer, Trace
+from ..model.load import arm_units
+from ..sim.simulation import Observer, Trace
 from ..units import GRIPPER_INDEX, JOINT_NAMES, format_value
 from ..validation import check_count
 from .envelope import MAX_BUCKETS, Envelope

@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 
 from ..errors import RecordingError, So101SimError
-from ..simulation import Observer
+from ..sim.simulation import Observer
 from ..validation import check_count
 from .csvlog import CsvLog
 from .paths import check_distinct, check_output_path
@@ -29,7 +29,7 @@ log = logging.getLogger(__name__)
 class Recorder:
     """Records a run to any of a video, a plot and a CSV log; a context manager.
 
-    ``target`` is a :class:`so101sim.simulation.Simulation` (its ``observers`` get the
+    ``target`` is a :class:`so101sim.sim.simulation.Simulation` (its ``observers`` get the
     recorder's observers while the block runs) or an ``MjModel`` (then pass
     :attr:`observers` to :func:`so101sim.motion.run_motion` yourself). Every path and setting is
     checked here, before anything runs. On exit the files are finished, read back and moved

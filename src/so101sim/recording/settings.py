@@ -9,8 +9,8 @@ import mujoco
 
 from .. import gl
 from ..errors import CameraError, RecordingError
-from ..framing import NAMED_VIEWS
 from ..validation import check_choice, check_count, check_range
+from .framing import NAMED_VIEWS
 
 QUALITIES = ("draft", "full")
 QUALITY_CHOICES = ("auto", *QUALITIES)
@@ -29,7 +29,7 @@ class VideoSettings:
     whether a caption (time, phase) is drawn.
 
     With the free camera, the view is fitted to the space the arm sweeps during the run
-    (:mod:`so101sim.framing`), seen from the named ``view`` ("default", "front", "side",
+    (:mod:`so101sim.recording.framing`), seen from the named ``view`` ("default", "front", "side",
     "top") or from ``azimuth``/``elevation`` (degrees); ``distance`` (m) and ``lookat``
     (x, y, z in m) override the fitted ones. ``title`` (e.g. the student's name) is drawn in
     the caption and written into the video's metadata."""

@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from ..errors import OutputPathError, RecordingError
-from ..simulation import Observer, Trace
+from ..sim.simulation import Observer, Trace
 from .encoder import FfmpegEncoder, count_frames
 from .frames import FrameRenderer
 from .paths import PendingFile, check_output_path, write_error

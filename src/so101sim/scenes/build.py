@@ -16,7 +16,7 @@ from pathlib import Path
 import mujoco
 
 from ..errors import ModelError, SettingError
-from ..model import arm_index, scene_path
+from ..model.load import arm_index, scene_path
 from ..validation import check_count, check_range
 from .cameras import CameraSpec, add_camera, check_camera_names
 from .objects import MAX_OBJECTS, MAX_REACH_M, ContactSettings, SceneObject, Table

@@ -11,7 +11,7 @@ import dataclasses
 from so101sim import LAB_MOTION, STARTING_POSE, Move, load_model
 from so101sim.model import default_units
 from so101sim.preflight import preflight
-from so101sim.trajectory import LimitedProfile, minimum_steps
+from so101sim.sim.limited import LimitedProfile, minimum_steps
 
 TIMESTEP = load_model().opt.timestep  # the physics timestep, s (0.002)
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from so101sim.robot_helpers import hold_robot, move_robot_to
+from so101sim.robot.helpers import hold_robot, move_robot_to
 from so101sim.units import STARTING_POSE, ZERO_POSE, format_pose
 
 

@@ -1,0 +1,142 @@
+"""The commands that run no motion file: view, model-path, pose, check and teleop."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from ..errors import SettingError
+from ..validation import check_duration
+from .tools import output_hint
+
+
+# ---------------------------------------------------------------------------- other commands
+def cmd_view(args: argparse.Namespace) -> int:
+    from ..sim.simulation import Simulation  # imported here: they import MuJoCo
+    from ..viewer import view
+
+    sim = Simulation(args.model)
+    view(sim.model, sim.data)
+    return 0
+
+
+def cmd_model_path(args: argparse.Namespace) -> int:
+    from ..model.load import model_dir  # imported here: it imports MuJoCo
+
+    print(model_dir())
+    return 0
+
+
+def cmd_pose(args: argparse.Namespace) -> int:
+    from ..viewer.posefinder import (  # imported here: they import MuJoCo
+        format_python,
+        format_toml,
+        open_pose_viewer,
+        pose_scene,
+        watch_poses,
+    )
+
+    m, d = pose_scene(args.model)
+    # Open the viewer first: without a display its error is all the user sees.
+    with open_pose_viewer(m, d) as handle:
+        print(
+            "Move the joint sliders (right panel, 'Joint'), or double-click a part and "
+            "Ctrl+right-drag it. Each pose the arm is left in is printed below; close the "
+            "window to finish.",
+            flush=True,
+        )
+        for change in watch_poses(handle, m, d):
+            print(
+                f"\n# pose {change.number} (t = {change.time:.1f} s)\n"
+                f"python: {format_python(change.pose)}\n"
+                f"toml:   {format_toml(f'pose_{change.number}', change.pose)}"
+                + (f"\ntip:    {change.tip.format()}" if change.tip is not None else ""),
+                flush=True,
+            )
+    return 0
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    import json
+
+    from ..motion.file import lab_motion_path  # imported here: they import MuJoCo
+    from ..preflight.check import Thresholds, check_motion_file, format_report
+
+    names = ("max_effort", "max_saturation", "max_tracking_error", "limit_margin")
+    # a bad threshold is a SettingError: main() reports it
+    thresholds = Thresholds(**{name: getattr(args, name) for name in names})
+    motion = args.motion if args.motion else lab_motion_path()
+    if args.variants is not None:
+        return _check_variants(args, motion, thresholds)
+    if any(getattr(args, o) is not None for o in ("seed", "threads", "plot", "ray")) or args.force:
+        raise SettingError(
+            "--seed, --threads, --plot, --force and --ray go with --variants N; expected --variants"
+        )
+    with output_hint(args.motion, "so101sim run "):
+        report = check_motion_file(
+            motion, model=args.model, thresholds=thresholds, strict=args.strict
+        )
+    print(json.dumps(report.to_dict(), indent=2) if args.json else format_report(report))
+    return 0 if report.passed else 1
+
+
+def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> int:
+    import json
+
+    from ..preflight import robust as pv  # imports MuJoCo
+
+    settings = {"model": args.model, "thresholds": thresholds, "strict": args.strict}
+    seed = 0 if args.seed is None else args.seed
+    if args.plot:
+        pv.check_plot_path(args.plot, force=args.force)  # before anything runs
+    if args.ray is None:
+        report = pv.check_variants(
+            motion, count=args.variants, seed=seed, threads=args.threads, **settings
+        )
+    else:
+        from ..preflight.distributed import run_on_ray
+
+        job = pv.make_job(motion, count=args.variants, seed=seed, **settings)
+        report = pv.summarize(job, run_on_ray(job, args.ray))
+    if args.plot:
+        pv.plot_variants(report, args.plot, force=True)
+    print(json.dumps(report.to_dict(), indent=2) if args.json else pv.format_variants(report))
+    if args.plot and not args.json:
+        print(f"wrote {args.plot}")
+    return 0 if report.passed == len(report.outcomes) else 1
+
+
+def cmd_teleop(args: argparse.Namespace) -> int:
+    from .. import robot  # imported here: they import MuJoCo
+    from ..robot import teleop
+    from ..robot.helpers import check_fps
+    from ..viewer import choose_viewer
+
+    # Check the numbers before opening anything (port, robot, viewer).
+    fps = check_fps(args.fps)
+    duration = check_duration(args.duration) if args.duration is not None else None
+    calibration = teleop.find_calibration(args.calibration, args.id)
+    print(calibration.note)
+    viewer = choose_viewer(args.headless)
+    if viewer.note:
+        print(viewer.note)
+    config = robot.SO101SimFollowerConfig(id="teleop", model=args.model, viewer=viewer.use)
+    follower = robot.SO101SimFollower(config)
+    bus = teleop.FeetechLeaderBus(args.port, calibration=calibration.motors)
+    try:
+        with follower:
+            print(f"mirroring the leader on {args.port} at {args.fps:g} Hz; Ctrl-C to stop")
+            stop = (lambda: not follower.viewer_open) if viewer.use else None
+            result = teleop.teleoperate(
+                follower, bus, calibration.motors, fps=fps, duration=duration, should_stop=stop
+            )
+    except KeyboardInterrupt:
+        print("stopped")
+        return 0
+    finally:
+        bus.close()
+    print(
+        f"{result.ticks} ticks in {result.duration:.2f} s "
+        f"({result.late_ticks} slower than {args.fps:g} Hz)"
+    )
+    return 0

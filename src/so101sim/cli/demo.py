@@ -1,0 +1,101 @@
+"""``so101sim demo <task>``: one episode of a task's scripted expert, in the viewer when there
+is a display (else headless), optionally recorded to a video. Like :mod:`so101sim.cli`, it only
+parses and prints: :func:`so101sim.envs.run_expert` runs the episode. MuJoCo is imported inside
+the command, after ``--record`` has chosen the OpenGL backend.
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from .tools import add_video_options
+
+SubParsers = Any  # argparse's private _SubParsersAction
+
+
+def add_demo_command(sub: SubParsers) -> None:
+    """Add ``demo`` to the parser's subcommands."""
+    p = sub.add_parser(
+        "demo",
+        help="run a task's scripted expert once (pick_cube, cube_to_bowl), optionally on video",
+        description=(
+            "Runs the scripted expert of TASK for one episode from the start poses drawn from "
+            "--seed: in MuJoCo's viewer when there is a display (unless --headless), and with "
+            "--record to an MP4. Prints whether it succeeded, the simulated time and the task's "
+            "figure (how high the cube rose, how far it is from the bowl's centre). Exit "
+            "status 0 on success, 1 when the task failed, 2 on a bad setting."
+        ),
+    )
+    p.add_argument("task", help="the task: pick_cube or cube_to_bowl")
+    p.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
+    p.add_argument(
+        "--headless", action="store_true", help="run without the viewer, even with a display"
+    )
+    g = p.add_argument_group("recording")
+    g.add_argument("--record", metavar="PATH", help="write an H.264 video of the episode (.mp4)")
+    add_video_options(
+        g, camera="front", camera_help="'front' (default), 'wrist', or 'free' (fitted view)"
+    )
+    g.add_argument(
+        "--caption",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="draw the time into the video (default: on)",
+    )
+    g.add_argument("--force", action="store_true", help="overwrite an existing video")
+    p.set_defaults(func=cmd_demo)
+
+
+def format_figures(figures: dict[str, float]) -> str:
+    """The task's figure in words: the cube's rise, or its distance from the bowl."""
+    parts = []
+    if "cube_rise_m" in figures:
+        parts.append(f"cube lifted {figures['cube_rise_m'] * 1000:.1f} mm")
+    if "cube_to_bowl_m" in figures:
+        where = "in the bowl" if figures.get("in_bowl") else "not in the bowl"
+        parts.append(
+            f"cube {figures['cube_to_bowl_m'] * 1000:.1f} mm from the bowl's centre ({where})"
+        )
+    if "grasped" in figures:
+        parts.append("held in the gripper" if figures["grasped"] else "not held")
+    return ", ".join(parts)
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    if args.record:
+        from ..gl import prepare_for_rendering  # imported here: only rendering needs it
+
+        prepare_for_rendering()
+    from ..envs import env_id, run_expert  # imported here: they import MuJoCo
+    from ..recording import VideoSettings
+    from ..viewer import choose_viewer
+
+    env_id(args.task)  # an unknown task: SettingError listing the tasks (exit status 2)
+    viewer = choose_viewer(args.headless)
+    if viewer.note:
+        print(viewer.note)
+    fields = ("width", "height", "fps", "camera", "quality", "caption")
+    settings = VideoSettings(**{name: getattr(args, name) for name in fields}).validated()
+    result = run_expert(
+        args.task,
+        args.seed,
+        record=args.record,
+        video=settings,
+        force=args.force,
+        viewer=viewer.use,
+    )
+    if result.success_time is not None:
+        status = f"success at t = {result.success_time:.2f} s"
+    else:
+        status = "FAILED" if result.completed else "stopped (viewer closed)"
+    tries = "grasp" if result.attempts == 1 else "grasps"
+    print(
+        f"{args.task}, seed {result.seed}: {status} "
+        f"({result.sim_time:.2f} s of simulated time in all, {result.steps} steps, "
+        f"{result.attempts} {tries} tried)"
+    )
+    print(format_figures(result.figures))
+    if result.video is not None:
+        print(f"wrote the video to {result.video} ({result.video_frames} frames)")
+    return 0 if result.success or not result.completed else 1

@@ -1,0 +1,181 @@
+"""What the command line prints, and the signal handling that finishes output files first.
+
+While a command runs, SIGINT, SIGTERM and SIGHUP all raise :class:`Interrupted` (a
+KeyboardInterrupt), so each one finishes the output files as Ctrl-C does; one that comes while
+they are finished waits until they are (:class:`_Signals`). The exit status is then 128 + the
+signal's number (130 for Ctrl-C). The library installs no signal handler: this belongs to the
+command line.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from typing import TYPE_CHECKING, Any
+
+from ..errors import So101SimError
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
+
+    from ..motion.segments import RunResult
+    from ..recording import Recorder
+    from ..sim.simulation import SegmentResult
+
+
+# ---------------------------------------------------------------------------- printing
+def format_segment(seg: SegmentResult) -> str:
+    """A phase's report: target, reached pose, largest tracking error."""
+    from ..units import format_pose, format_value
+
+    joint, err = seg.worst_tracking_error
+    status = "" if seg.completed else "  (stopped early)"
+    return (
+        f"{seg.phase} [{seg.kind}, {seg.start_time:.3f}-{seg.end_time:.3f} s, "
+        f"{seg.steps} steps]{status}\n"
+        f"  target : {format_pose(seg.target)}\n"
+        f"  reached: {format_pose(seg.reached)}\n"
+        f"  largest tracking error: {format_value(joint, err, 3)} ({joint})"
+    )
+
+
+def print_run(result: RunResult) -> None:
+    for seg in result.segments:
+        print(format_segment(seg))
+    if not result.completed:
+        print(f"run ended early at t = {result.end_time:.3f} s (viewer closed)")
+
+
+def _progress_bar(frames: int | None) -> tqdm | None:
+    """A bar on stderr counting the video's frames (None without a video)."""
+    if frames is None:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(
+        total=frames,
+        unit="frame",
+        desc="recording",
+        file=sys.stderr,
+        delay=1.0,  # shown only for renders that take more than a second
+        disable=None,  # and only on a terminal
+        leave=False,
+    )
+
+
+# ---------------------------------------------------------------------------- signals
+class Interrupted(KeyboardInterrupt):
+    """SIGINT, SIGTERM or SIGHUP, raised as a Ctrl-C is, so that each one finishes the files."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+class _Signals:
+    """While a command runs, SIGINT, SIGTERM and SIGHUP raise :class:`Interrupted`. A signal
+    that comes while the output files are finished (:attr:`finishing`), or within a second of
+    the last one raised (it is on its way there), waits in :attr:`waiting` instead: the files
+    are finished first. A third that waits gives them up (SystemExit)."""
+
+    NAMES = ("SIGINT", "SIGTERM", "SIGHUP")
+
+    def __init__(self) -> None:
+        self.finishing = False
+        self.waiting: list[int] = []
+        self.raised: int | None = None  # the signal last raised as Interrupted
+        self._raised_at = -math.inf
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> _Signals:
+        self.finishing, self.waiting, self._raised_at = False, [], -math.inf
+        self.raised = None
+        if threading.current_thread() is threading.main_thread():
+            for name in self.NAMES:
+                if (signum := getattr(signal, name, None)) is not None:
+                    self._previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for signum, previous in self._previous.items():
+            signal.signal(signum, previous)
+        self._previous.clear()
+
+    def _handle(self, signum: int, frame: object) -> None:
+        now = time.monotonic()
+        if not self.finishing and now - self._raised_at > 1.0:
+            self._raised_at = now
+            self.raised = signum
+            raise Interrupted(signum)
+        self.waiting.append(signum)
+        if len(self.waiting) >= 3:
+            _notice("so101sim: output files left unfinished\n")
+            raise SystemExit(128 + signum)
+        more = "twice more" if len(self.waiting) == 1 else "once more"
+        _notice(f"so101sim: finishing the output files first (signal {more} to drop them)\n")
+
+
+def _notice(text: str) -> None:
+    """Write to stderr from a signal handler (print() may be in the middle of a line)."""
+    with contextlib.suppress(OSError):
+        os.write(2, text.encode())
+
+
+def _say(text: str, *, err: bool = False) -> None:
+    """print(), except that a closed terminal (after SIGHUP) is not an error."""
+    with contextlib.suppress(OSError):
+        print(text, file=sys.stderr if err else sys.stdout, flush=True)
+
+
+def _signal_name(signum: int) -> str:
+    with contextlib.suppress(ValueError):
+        return signal.Signals(signum).name
+    return f"signal {signum}"
+
+
+SIGNALS = _Signals()
+"""The handlers :func:`main` installs while a command runs."""
+
+
+@contextlib.contextmanager
+def _reporting(recorder: Recorder, bar: tqdm | None) -> Iterator[None]:
+    """Finish the recorder's files on the way out (also on Ctrl-C, SIGTERM, SIGHUP or an
+    error) and say what was written; signals that come meanwhile wait until it is done."""
+    try:
+        yield
+    except BaseException as exc:
+        SIGNALS.finishing = True  # first, and no call before it: a call may be interrupted
+        _finish_outputs(recorder, bar, exc)
+        raise
+    SIGNALS.finishing = True
+    _finish_outputs(recorder, bar, None)
+
+
+def _say_written(recorder: Recorder, so_far: str) -> None:
+    for key, path in recorder.outputs.items():
+        extra = f" ({recorder.video.frames} frames)" if key == "video" and recorder.video else ""
+        _say(f"wrote the {key} {so_far}to {path}{extra}")
+
+
+def _finish_outputs(recorder: Recorder, bar: tqdm | None, pending: BaseException | None) -> None:
+    """Close the recorder and print what it wrote; raise what failed (a full disk), unless
+    ``pending`` (what stopped the run) is on its way out: then print it."""
+    if bar is not None:
+        with contextlib.suppress(OSError):  # a terminal that hung up
+            bar.close()
+    # errors are in recorder.errors; an interrupt is already on its way (SIGNALS.waiting)
+    with contextlib.suppress(So101SimError, KeyboardInterrupt):
+        recorder.close()
+    _say_written(recorder, "so far " if pending is not None else "")
+    errors = [e for e in recorder.errors.values() if e is not pending]
+    first = errors.pop(0) if errors and pending is None else None
+    for error in errors:
+        _say(f"so101sim: error: {error}", err=True)
+    if first is not None:
+        raise first

@@ -1,0 +1,82 @@
+"""``so101sim run`` and ``so101sim hold``: a motion run through :mod:`.runplan`."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+from ..validation import check_duration
+from .output import _progress_bar, _reporting, print_run
+from .tools import camera_options, output_hint
+
+if TYPE_CHECKING:
+    from ..motion.segments import Segment
+    from ..units import Pose
+    from .runplan import Outputs
+
+
+# ---------------------------------------------------------------------------- run and hold
+def _prepare_rendering(args: argparse.Namespace) -> None:
+    """With --record, choose MuJoCo's OpenGL backend (EGL or OSMesa without a display) before
+    MuJoCo is first imported; with --headless and no --record nothing draws: no backend."""
+    from ..gl import prepare_for_rendering, skip_opengl
+
+    if args.record:
+        prepare_for_rendering()
+    elif args.headless:
+        skip_opengl()
+
+
+def _outputs(args: argparse.Namespace) -> Outputs:
+    from ..recording import VideoSettings  # imported here: it imports MuJoCo
+    from .runplan import Outputs
+
+    fields = ("width", "height", "fps", "camera", "quality", "caption")
+    settings = VideoSettings(
+        **{name: getattr(args, name) for name in fields}, **camera_options(args)
+    )
+    return Outputs(args.record, args.plot, args.log, settings, force=args.force)
+
+
+def _run(
+    args: argparse.Namespace, segments: Sequence[Segment], start: Pose, strict: bool = False
+) -> int:
+    from .runplan import prepare_run  # imported here: it imports MuJoCo
+
+    run = prepare_run(  # checks every setting before anything opens or moves
+        segments,
+        start=start,
+        model=args.model,
+        speed=args.speed,
+        headless=args.headless,
+        strict=strict,
+        outputs=_outputs(args),
+    )
+    if run.viewer.note:
+        print(run.viewer.note)
+    bar = _progress_bar(run.video_frames)
+    with _reporting(run.recorder, bar) if run.recorder else contextlib.nullcontext():
+        result = run.execute(progress=bar.update if bar is not None else None)
+    print_run(result)
+    return 0
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    _prepare_rendering(args)
+    from ..motion.file import lab_motion_path, load_motion  # imported here: they import MuJoCo
+
+    with output_hint(args.motion):
+        motion = load_motion(args.motion if args.motion else lab_motion_path())
+    return _run(args, motion.steps, motion.start, strict=args.strict)
+
+
+def cmd_hold(args: argparse.Namespace) -> int:
+    duration = check_duration(args.duration, "hold duration")
+    _prepare_rendering(args)
+    from ..motion.segments import Hold  # imported here: it imports MuJoCo
+    from ..units import STARTING_POSE, format_pose
+
+    print(f"holding the starting pose: {format_pose(STARTING_POSE)}")
+    return _run(args, (Hold(duration, phase="hold"),), STARTING_POSE)

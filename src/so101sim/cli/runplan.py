@@ -1,0 +1,158 @@
+"""Running a motion as ``so101sim run`` and ``so101sim hold`` do: check everything, then run.
+
+:func:`prepare_run` checks every setting before anything opens or moves: the playback speed,
+the model, each segment's target and duration, with ``strict`` the ``limited`` moves that are
+too short for the joint limits (:func:`check_strict`), and the output paths and video settings
+(it makes the :class:`~so101sim.recording.Recorder`, which opens no file yet). It also decides
+viewer or headless (:func:`so101sim.viewer.choose_viewer`). :meth:`PreparedRun.execute` then
+opens the viewer if there is one and runs the motion with the recorder's observers.
+
+Nothing here prints: the caller shows :attr:`PreparedRun.viewer`'s note, a progress bar fed
+through ``execute(progress=...)``, and what :meth:`Recorder.close` wrote (the caller closes the
+recorder, also after Ctrl-C). This module sits above motion and the outputs (recording, viewer)
+and below the command line.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from contextlib import ExitStack
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import mujoco
+
+from ..model.load import arm_units, load_model
+from ..motion.segments import RunResult, Segment, commanded_path, run_motion, validate_segments
+from ..recording.framing import sweep_frames
+from ..recording.settings import VideoSettings
+from ..sim.limited import check_limited_moves
+from ..sim.simulation import Observer, Pacer, Simulation, ViewerObserver
+from ..units import STARTING_POSE, Pose
+from ..viewer import ViewerChoice, choose_viewer, open_viewer
+
+if TYPE_CHECKING:
+    from ..recording import Recorder
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """What to write while a motion runs: a video, a plot and a CSV log (None: not written)."""
+
+    video: str | Path | None = None
+    plot: str | Path | None = None
+    log: str | Path | None = None
+    settings: VideoSettings = field(default_factory=VideoSettings)
+    force: bool = False  # overwrite existing files
+
+    @property
+    def wanted(self) -> bool:
+        """True when at least one file is asked for."""
+        return bool(self.video or self.plot or self.log)
+
+
+def check_strict(
+    model: mujoco.MjModel, segments: Sequence[Segment], start: Pose = STARTING_POSE
+) -> None:
+    """Refuse, before anything runs, a ``limited`` move shorter than the joint limits allow
+    (instead of stretching it): raises :class:`~so101sim.errors.TrajectoryLimitError` naming
+    the first such move of ``segments`` run from ``start``."""
+    units = arm_units(model)
+    check_limited_moves(
+        units.pose_to_array(start), segments, model.opt.timestep, units=units, strict=True
+    )
+
+
+@dataclass
+class PreparedRun:
+    """A motion checked and ready to run; :meth:`execute` runs it."""
+
+    sim: Simulation
+    segments: tuple[Segment, ...]
+    pacer: Pacer
+    viewer: ViewerChoice
+    recorder: Recorder | None = None
+
+    @property
+    def duration(self) -> float:
+        """Simulated seconds the motion lasts."""
+        return sum(s.duration for s in self.segments)
+
+    @property
+    def video_frames(self) -> int | None:
+        """Frames the video will hold (None without a video)."""
+        if self.recorder is None or self.recorder.video is None:
+            return None
+        from ..recording import video_frames  # imported here: only a run that records needs it
+
+        return video_frames(self.duration, self.recorder.settings.fps)
+
+    def execute(self, progress: Callable[[int], Any] | None = None) -> RunResult:
+        """Run the motion, in the viewer if one was chosen (paced to the wall clock), writing
+        to the recorder's outputs; ``progress`` is called with 1 per video frame. The recorder
+        is left open: close it (``recorder.close()``) afterwards, also on an error."""
+        if progress is not None and self.recorder is not None and self.recorder.video is not None:
+            self.recorder.video.progress = progress
+        with ExitStack() as stack:
+            observers: list[Observer] = list(self.recorder.observers) if self.recorder else []
+            if self.viewer.use:
+                handle = stack.enter_context(
+                    open_viewer(self.sim.model, self.sim.data, mirror=True, quality="auto")
+                )
+                observers.append(ViewerObserver(handle, self.pacer))
+            return run_motion(self.sim.model, self.sim.data, self.segments, observers=observers)
+
+
+def prepare_run(
+    segments: Sequence[Segment],
+    *,
+    start: Pose = STARTING_POSE,
+    model: str | Path | mujoco.MjModel | None = None,
+    speed: float = 1.0,
+    headless: bool = False,
+    strict: bool = False,
+    outputs: Outputs | None = None,
+) -> PreparedRun:
+    """Check a run of ``segments`` from ``start`` and make its recorder, opening nothing.
+
+    Raises:
+        So101SimError: a bad speed, model, segment, output path or video setting, or (with
+            ``strict``) a ``limited`` move too short for the joint limits.
+    """
+    viewer = choose_viewer(headless)
+    # nothing will draw it: the physics-only model (same physics, a fifth of the memory)
+    draws = viewer.use or (outputs is not None and outputs.video is not None)
+
+    def loaded() -> mujoco.MjModel:
+        if isinstance(model, mujoco.MjModel):
+            return model
+        return load_model(model, physics_only=not draws)
+
+    if strict:
+        check_strict(loaded(), segments, start)
+    pacer = Pacer(speed)  # checks the speed before anything opens
+    sim = Simulation(loaded(), initial_pose=start)
+    # every target and duration, before anything runs (tip moves planned in full)
+    validate_segments(sim.model, segments, start=sim.commanded_array())
+    recorder = None
+    if outputs is not None and outputs.wanted:
+        from ..recording import Recorder  # imported here: only a run that writes files needs it
+
+        sweep = None
+        if outputs.video is not None:  # the camera frames what the motion will sweep
+            _, path = commanded_path(sim.model, segments, start)
+            sweep = sweep_frames(sim.model, path)
+        recorder = Recorder(  # checks every path and setting
+            sim,
+            video=outputs.video,
+            plot=outputs.plot,
+            log=outputs.log,
+            settings=outputs.settings.validated(),
+            force=outputs.force,
+            sweep=sweep,
+        )
+    return PreparedRun(sim, tuple(segments), pacer, viewer, recorder)
+
+
+__all__ = ["Outputs", "PreparedRun", "check_strict", "prepare_run"]

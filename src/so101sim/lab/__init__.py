@@ -1,0 +1,25 @@
+"""The lab: the handout's helpers on ``(m, d)``, the hand-in recorder and the starter files.
+
+An app layer: may import ``so101sim.preflight``, ``so101sim.recording``, ``so101sim.viewer``,
+``so101sim.motion``, ``so101sim.sim``, ``so101sim.model`` and the base modules. Modules:
+:mod:`.helpers` (``move_to_pose``, ``hold_position``, ...), :mod:`.handin` (``so101sim record``),
+:mod:`.simclock` (simulated time for scripts), :mod:`.starter` (``so101sim examples``).
+"""
+
+from .helpers import (
+    convert_to_dictionary,
+    convert_to_list,
+    hold_position,
+    move_to_pose,
+    send_position_command,
+    set_initial_pose,
+)
+
+__all__ = [
+    "convert_to_dictionary",
+    "convert_to_list",
+    "hold_position",
+    "move_to_pose",
+    "send_position_command",
+    "set_initial_pose",
+]

@@ -1,0 +1,330 @@
+"""The lab's hand-in: record a student's own script to a video, with no screen recorder.
+
+Two ways, the same result:
+
+* **From Python**, one call in the script: :func:`record` returns a :class:`RecordingViewer`
+  that works wherever the script used ``mujoco.viewer.launch_passive(m, d)``: as the ``viewer``
+  of the lab helpers (``move_to_pose(m, d, viewer, ...)``) and in a handout-style loop
+  (``viewer.sync()``, ``viewer.is_running()``, ``viewer.lock()``, ``viewer.close()``).
+* **From the command line**, the script unchanged: ``so101sim record my_lab.py -o lab.mp4``
+  runs it with :func:`run_script`, which makes ``mujoco.viewer.launch_passive`` return the
+  recorder and the script's clock follow simulated time (:mod:`so101sim.lab.simclock`), so the
+  handout's wall-clock loops run exactly the simulated time they ask for.
+
+Frames are taken at the video's rate in *simulated* time; a title (the student's name) goes
+in the caption and the video's metadata.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import runpy
+import sys
+import threading
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from ..errors import So101SimError, ViewerError
+from ..recording import Recorder, VideoSettings
+from ..sim.simulation import Observer, Simulation, Trace
+from .simclock import SimClock, simulated_time
+
+PathArg = str | os.PathLike[str] | None
+
+
+class RecordingViewer(Observer):
+    """A stand-in for ``mujoco.viewer.launch_passive(m, d)`` that records the run.
+
+    The lab helpers see it as an :class:`~so101sim.sim.simulation.Observer` and hand it every
+    step; a raw loop calls :meth:`sync` after its steps. Either way a frame is taken each time
+    simulated time passes the next frame time (``fps`` per simulated second). ``opt``, ``cam``
+    and ``perturb`` exist as on MuJoCo's viewer, so scripts that set them still run. Closing it
+    (or leaving its ``with`` block) writes the files; ``outputs`` says which.
+    """
+
+    def __init__(
+        self,
+        m: mujoco.MjModel,
+        d: mujoco.MjData,
+        video: PathArg,
+        *,
+        plot: PathArg = None,
+        log: PathArg = None,
+        settings: VideoSettings | None = None,
+        force: bool = False,
+        phase: str = "",
+    ) -> None:
+        self.sim = Simulation.attach(m, d)
+        self.recorder = Recorder(m, video=video, plot=plot, log=log, settings=settings, force=force)
+        self.phase = phase
+        self.opt = mujoco.MjvOption()
+        self.cam = mujoco.MjvCamera()
+        self.perturb = mujoco.MjvPerturb()
+        self.outputs: dict[str, Path] = {}
+        self._lock = threading.RLock()
+        self._closed = False
+        self._started = False
+        self._last_time = float(d.time)
+
+    # -- the Observer side (the lab helpers, Simulation.move_to(viewer=...))
+    def on_start(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        self._started = True
+        for o in self.recorder.observers:
+            o.on_start(m, d)
+
+    def next_time(self) -> float:
+        if self._closed:
+            return float("inf")
+        return min((o.next_time() for o in self.recorder.observers), default=float("inf"))
+
+    def on_time(self, m: mujoco.MjModel, d: mujoco.MjData) -> bool:
+        for o in self.recorder.observers:
+            if o.next_time() <= d.time + 1e-12:
+                o.on_time(m, d)
+        return not self._closed
+
+    def on_steps(self, trace: Trace, phase: str) -> None:
+        if len(trace.time):
+            self._last_time = float(trace.time[-1])
+        for o in self.recorder.observers:
+            o.on_steps(trace, phase or self.phase)
+
+    # -- the viewer side (handout-style loops)
+    def sync(self) -> None:
+        """Take what happened since the last call: a log row and, when a frame is due, a
+        frame of the current state."""
+        if self._closed:
+            return
+        m, d = self.sim.model, self.sim.data
+        if not self._started:
+            self.on_start(m, d)
+        if d.time > self._last_time:
+            idx = self.sim.index
+            row = Trace(
+                np.array([d.time]),
+                d.ctrl[idx.actuator][None].copy(),
+                d.qpos[idx.qpos][None].copy(),
+            )
+            self.on_steps(row, self.phase)
+        self.on_time(m, d)
+
+    def is_running(self) -> bool:
+        """True until :meth:`close`."""
+        return not self._closed
+
+    def lock(self) -> threading.RLock:
+        """A lock, as MuJoCo's viewer has (nothing draws concurrently here)."""
+        return self._lock
+
+    def close(self) -> dict[str, Path]:
+        """Finish the files (once); return {"video"/"plot"/"log": path} of those written."""
+        if not self._closed:
+            self._closed = True
+            self.outputs = self.recorder.close()
+        return dict(self.outputs)
+
+    def __enter__(self) -> RecordingViewer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def record(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    video: PathArg,
+    *,
+    title: str | None = None,
+    width: int = 640,
+    height: int = 480,
+    fps: float = 30.0,
+    quality: str = "auto",
+    camera: str = "free",
+    caption: bool = True,
+    plot: PathArg = None,
+    log: PathArg = None,
+    force: bool = False,
+    view: str = "default",
+    azimuth: float | None = None,
+    elevation: float | None = None,
+    distance: float | None = None,
+    lookat: tuple[float, float, float] | None = None,
+) -> RecordingViewer:
+    """Record the run of ``(m, d)`` to ``video`` (MP4), optionally a ``plot`` and a ``log``:
+    use the result where the script used ``mujoco.viewer.launch_passive(m, d)``::
+
+        with so101sim.record(m, d, "lab.mp4", title="Lab 2 - Ada Lovelace") as viewer:
+            move_to_pose(m, d, viewer, desired, 2.0)
+
+    The free camera is fitted to the motion, seen from ``view`` ("default", "front", "side",
+    "top") or ``azimuth``/``elevation`` (degrees); ``distance`` (m) and ``lookat`` (x, y, z in m)
+    override the fitted ones. Every setting and path is checked before anything runs (the
+    errors say what to use).
+    """
+    settings = VideoSettings(
+        width=width, height=height, fps=fps, camera=camera, quality=quality, caption=caption,
+        view=view, azimuth=azimuth, elevation=elevation, distance=distance, lookat=lookat,
+    )  # fmt: skip
+    if title is not None:
+        settings = _with_title(settings, title)
+    return RecordingViewer(m, d, video, plot=plot, log=log, settings=settings, force=force)
+
+
+def _with_title(settings: VideoSettings, title: str) -> VideoSettings:
+    if not hasattr(settings, "title"):  # a recorder without titles: keep the settings
+        return settings
+    return replace(settings, title=title)
+
+
+# ---------------------------------------------------------------------------- scripts
+@dataclass
+class ScriptRun:
+    """What :func:`run_script` did: the script's exit status and the files written."""
+
+    exit_status: int
+    outputs: dict[str, Path] = field(default_factory=dict)
+    simulated_seconds: float = 0.0
+    message: str = ""  # what sys.exit("text") said, for the CLI to print
+
+
+class NothingRecordedError(So101SimError, RuntimeError):
+    """The script never opened a viewer, so there was nothing to record."""
+
+
+class _Session:
+    """The one recording of a script run: made when the script first opens a viewer."""
+
+    def __init__(self, clock: SimClock, video: PathArg, options: dict[str, Any]) -> None:
+        self.clock = clock
+        self.video = video
+        self.options = options
+        self.viewer: RecordingViewer | None = None
+
+    def launch_passive(self, m: mujoco.MjModel, d: mujoco.MjData, **_: Any) -> RecordingViewer:
+        if self.viewer is None:
+            self.viewer = record(m, d, self.video, **self.options)
+        elif self.viewer.sim.data is not d:
+            raise ViewerError(
+                "the script opened a second viewer on other data; so101sim record follows "
+                "one simulation: open the viewer once"
+            )
+        self.clock.follow(d)
+        return _Handle(self.viewer)
+
+    def close(self) -> dict[str, Path]:
+        return self.viewer.close() if self.viewer is not None else {}
+
+
+class _Handle(RecordingViewer):
+    """The session's viewer as the script sees it: closing it (the end of its ``with``
+    block) keeps the recording open until the script ends."""
+
+    def __init__(self, viewer: RecordingViewer) -> None:
+        self.__dict__ = viewer.__dict__
+
+    def close(self) -> dict[str, Path]:
+        return dict(self.outputs)
+
+
+def _refuse_launch(*args: Any, **kwargs: Any) -> None:
+    raise ViewerError(
+        "mujoco.viewer.launch() opens an interactive window that blocks; so101sim record "
+        "needs launch_passive(m, d) (as the lab handout uses)"
+    )
+
+
+@contextlib.contextmanager
+def _patched_viewer(session: _Session) -> Iterator[None]:
+    """While the script runs: ``mujoco.viewer.launch_passive`` and so101sim's own
+    ``open_viewer`` return the recorder, and ``so101sim.viewer.has_display()`` is True (a
+    script that opens a viewer only when there is a display records too)."""
+    import mujoco.viewer  # imported here: only script runs need it
+
+    from .. import viewer as sim_viewer
+    from ..viewer import passive
+
+    modules = (sim_viewer, passive)  # what scripts import, and the module that calls them
+
+    @contextlib.contextmanager
+    def open_recorder(m: mujoco.MjModel, d: mujoco.MjData, **_: Any) -> Iterator[Any]:
+        yield session.launch_passive(m, d)
+
+    saved = (mujoco.viewer.launch_passive, mujoco.viewer.launch)
+    saved_sim = [(mod.open_viewer, mod.has_display) for mod in modules]
+    mujoco.viewer.launch_passive = session.launch_passive  # type: ignore[assignment]
+    mujoco.viewer.launch = _refuse_launch  # type: ignore[assignment]
+    for mod in modules:
+        mod.open_viewer = open_recorder  # type: ignore[assignment]
+        mod.has_display = lambda: True  # type: ignore[assignment]
+    try:
+        yield
+    finally:
+        mujoco.viewer.launch_passive, mujoco.viewer.launch = saved
+        for mod, (opener, display) in zip(modules, saved_sim, strict=True):
+            mod.open_viewer, mod.has_display = opener, display
+
+
+@contextlib.contextmanager
+def _script_environment(path: Path, args: Sequence[str]) -> Iterator[None]:
+    saved_argv, saved_path = sys.argv[:], sys.path[:]
+    sys.argv = [str(path), *args]
+    sys.path.insert(0, str(path.parent))
+    try:
+        yield
+    finally:
+        sys.argv, sys.path[:] = saved_argv, saved_path
+
+
+def run_script(
+    script: str | os.PathLike[str], args: Sequence[str], video: PathArg, **options: Any
+) -> ScriptRun:
+    """Run a handout-style ``script`` (with ``args``) headless and record it to ``video``.
+
+    While it runs, ``mujoco.viewer.launch_passive(m, d)`` returns the recorder (options as
+    :func:`record` takes them: ``title``, ``width``, ``fps``, ``plot``, ``log``, …) and
+    ``time.time``/``monotonic``/``perf_counter``/``sleep`` follow the simulated time of the
+    data the viewer was opened on (see :mod:`so101sim.lab.simclock`). The script's output and
+    exceptions pass through (an exception propagates after the files are finished); its
+    exit status is returned.
+
+    Raises:
+        NothingRecordedError: the script ended without opening a viewer.
+    """
+    path = Path(script)
+    if not path.is_file():
+        raise So101SimError(f"script {str(path)!r} does not exist; expected a Python file")
+    clock = SimClock()
+    session = _Session(clock, video, options)
+    status, message = 0, ""
+    try:
+        with _script_environment(path, args), _patched_viewer(session), simulated_time(clock):
+            try:
+                runpy.run_path(str(path), run_name="__main__")
+            except SystemExit as exc:
+                status, message = _exit_status(exc.code)
+    finally:
+        outputs = session.close()
+    if session.viewer is None:
+        raise NothingRecordedError(
+            f"{path.name} never opened a viewer (mujoco.viewer.launch_passive(m, d), "
+            "so101sim.viewer.open_viewer or so101sim.record): nothing to record; open the "
+            "viewer as the lab handout does"
+        )
+    return ScriptRun(status, outputs, clock.elapsed(), message)
+
+
+def _exit_status(code: object) -> tuple[int, str]:
+    """Python's rule for ``sys.exit(code)``: None is 0, an int is itself, anything else is
+    printed (by the caller) and is 1."""
+    if code is None:
+        return 0, ""
+    if isinstance(code, int):
+        return code, ""
+    return 1, str(code)

@@ -1,0 +1,286 @@
+"""Motions: moves, holds and sequences of them, as data and as ``(model, data)`` functions.
+
+A motion is a sequence of :data:`Segment` s (:class:`Move` and :class:`Hold`), each one
+planned whole and then stepped by :class:`~so101sim.sim.simulation.Simulation`: a move of T
+seconds is exactly ``round(T / timestep)`` physics steps of simulated time, its targets
+computed at once by a profile (:mod:`so101sim.sim.profiles`) and replayed in C.
+
+The ``(m, d)`` functions (:func:`move`, :func:`hold`, :func:`plan_move`, :func:`run_motion`)
+are thin wrappers over :meth:`Simulation.attach`, for handout-style code that holds a bare
+``MjModel``/``MjData``.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from ..errors import DurationError
+from ..model.load import arm_units
+from ..sim.profiles import PROFILES, Profile, get_profile, steps_for
+from ..sim.simulation import Observer, SegmentResult, Simulation
+from ..units import STARTING_POSE, ZERO_POSE, Pose
+from ..validation import MAX_DURATION_S, check_duration
+
+log = logging.getLogger(__name__)
+
+
+# ---------------------------------------------------------------------------- (m, d) functions
+def plan_move(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    target: Pose,
+    duration: float,
+    *,
+    profile: str | Profile = "linear",
+    clip: bool = False,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Validate a move and compute all its targets: ``(start, targets)`` in arm units
+    (:meth:`Simulation.plan_move`). Nothing moves."""
+    return Simulation.attach(m, d).plan_move(target, duration, profile=profile, clip=clip)
+
+
+def move(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    target: Pose,
+    duration: float,
+    *,
+    profile: str | Profile = "linear",
+    observers: Sequence[Observer] = (),
+    clip: bool = False,
+    phase: str = "move",
+) -> SegmentResult:
+    """Move the arm from its last commanded target to ``target`` over ``duration`` simulated
+    seconds, then return what happened (:meth:`Simulation.move_to`)."""
+    return Simulation.attach(m, d).move_to(
+        target, duration, profile=profile, observers=observers, clip=clip, phase=phase
+    )
+
+
+def hold(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    duration: float,
+    *,
+    observers: Sequence[Observer] = (),
+    phase: str = "hold",
+) -> SegmentResult:
+    """Hold the last commanded target (the measured pose, before any command) for ``duration``
+    simulated seconds (:meth:`Simulation.hold`)."""
+    return Simulation.attach(m, d).hold(duration, observers=observers, phase=phase)
+
+
+# ---------------------------------------------------------------------------- sequences
+@dataclass(frozen=True)
+class Move:
+    """Move to ``target`` (a pose) over ``duration`` seconds with ``profile``; or, with
+    ``tip`` = (x, y, z) metres and no target, move the gripper's tip there (optional tool
+    ``pitch``/``roll`` in degrees) along a straight line (``path="line"``) or in joint space
+    (``path="joint"``): see :meth:`Simulation.move_to` and :meth:`Move.to_tip`."""
+
+    target: Pose | None
+    duration: float
+    profile: str | Profile = "linear"
+    phase: str = "move"
+    tip: tuple[float, float, float] | None = None
+    pitch: float | None = None
+    roll: float | None = None
+    path: str = "line"
+
+    @classmethod
+    def to_tip(
+        cls,
+        tip: Sequence[float],
+        duration: float,
+        *,
+        pitch: float | None = None,
+        roll: float | None = None,
+        path: str = "line",
+        profile: str | Profile = "linear",
+        phase: str = "move",
+    ) -> Move:
+        """A move of the tip to ``tip`` (metres, base frame)."""
+        return cls(None, duration, profile, phase, tuple(tip), pitch, roll, path)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class Hold:
+    """Hold the last target for ``duration`` seconds."""
+
+    duration: float
+    phase: str = "hold"
+
+
+Segment = Move | Hold
+"""One part of a motion: a :class:`Move` or a :class:`Hold` (each runs many physics steps)."""
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """The segments of a motion, in order. ``completed`` is False if it was cut short."""
+
+    segments: list[SegmentResult]
+
+    @property
+    def completed(self) -> bool:
+        return all(s.completed for s in self.segments)
+
+    @property
+    def end_time(self) -> float:
+        return self.segments[-1].end_time if self.segments else 0.0
+
+
+LAB_MOTION: tuple[Segment, ...] = (
+    Move(ZERO_POSE, 2.0, phase="to_zero"),
+    Hold(2.0, phase="hold"),
+    Move(STARTING_POSE, 2.0, phase="return"),
+)
+"""The lab's motion: from the rest pose to all zeros in 2 s, hold 2 s, back in 2 s."""
+
+
+def validate_segments(
+    m: mujoco.MjModel,
+    segments: Sequence[Segment],
+    *,
+    clip: bool = False,
+    start: np.ndarray | None = None,
+) -> None:
+    """Check every segment's target, profile and duration before anything moves. With
+    ``start`` (the commanded pose, arm units), tip moves are planned in full from where the
+    segments before them end, so a point out of reach is found before the first one runs."""
+    units = arm_units(m)
+    current = None if start is None else np.asarray(start, dtype=float)
+    total = sum(check_duration(seg.duration, f"{seg.phase} duration") for seg in segments)
+    if total > MAX_DURATION_S:
+        raise DurationError(
+            f"the motion lasts {total:g} s in all; expected at most {MAX_DURATION_S:g} s "
+            "(one day of simulated time)"
+        )
+    for seg in segments:
+        if not isinstance(seg, Move):
+            continue
+        if seg.tip is None:
+            goal = units.pose_to_array(seg.target, clip=clip)  # type: ignore[arg-type]
+            get_profile(seg.profile)
+        elif current is not None:
+            sim = Simulation(m, initial_pose=None)  # a scratch one: planning only, no stepping
+            sim.command_array(current, check=False)
+            _, targets = sim.plan_tip_move(
+                seg.tip, seg.duration, pitch=seg.pitch, roll=seg.roll, path=seg.path,
+                profile=seg.profile,
+            )  # fmt: skip
+            goal = targets[-1]
+        else:
+            continue
+        current = goal
+
+
+def commanded_path(
+    model: mujoco.MjModel, segments: Sequence[Segment], start: Pose
+) -> tuple[np.ndarray, np.ndarray]:
+    """What a motion commands, step by step, without simulating it: ``(times, targets)``
+    with ``targets`` (n, 6) in arm units, one row per physics step (the target applied during
+    the step that ends at ``times[i]``). Planning depends only on the commanded targets, so
+    this is exactly what :func:`run_segments` would command from the rest pose ``start``.
+    """
+    sim = Simulation(model, initial_pose=start)  # scratch: planning only, never stepped
+    validate_segments(model, segments, start=sim.commanded_array())
+    rows: list[np.ndarray] = []
+    for seg in segments:
+        if isinstance(seg, Hold):
+            n = steps_for(seg.duration, sim.timestep)
+            targets = np.repeat(sim.commanded_array()[None], n, axis=0)
+        elif seg.tip is not None:
+            _, targets = sim.plan_tip_move(
+                seg.tip, seg.duration, pitch=seg.pitch, roll=seg.roll, path=seg.path,
+                profile=seg.profile,
+            )  # fmt: skip
+        else:
+            _, targets = sim.plan_move(seg.target, seg.duration, profile=seg.profile)
+        sim.command_array(targets[-1], check=False)
+        rows.append(targets)
+    path = np.vstack(rows) if rows else np.zeros((0, 6))
+    return sim.timestep * np.arange(1, len(path) + 1), path
+
+
+def run_segments(
+    sim: Simulation,
+    segments: Sequence[Segment] = LAB_MOTION,
+    *,
+    viewer: object = None,
+    observers: Sequence[Observer] = (),
+    clip: bool = False,
+    trace: bool | None = None,
+) -> RunResult:
+    """Run a sequence of moves and holds on ``sim``; stops early if an observer (a closed
+    viewer) says so. Every segment is validated before the first one runs. ``trace``: keep
+    each segment's per-step arrays (None: for segments up to two minutes)."""
+    validate_segments(sim.model, segments, clip=clip, start=sim.commanded_array())
+    results: list[SegmentResult] = []
+    for seg in segments:
+        if isinstance(seg, Move):
+            r = sim.move_to(
+                seg.target,
+                seg.duration,
+                tip=seg.tip,
+                pitch=seg.pitch,
+                roll=seg.roll,
+                path=seg.path,
+                profile=seg.profile,
+                viewer=viewer,
+                observers=observers,
+                clip=clip,
+                phase=seg.phase,
+                trace=trace,
+            )
+        else:
+            r = sim.hold(
+                seg.duration, viewer=viewer, observers=observers, phase=seg.phase, trace=trace
+            )
+        results.append(r)
+        if not r.completed:
+            log.info("run stopped during %s at t = %.3f s", r.phase, r.end_time)
+            break
+    return RunResult(results)
+
+
+def run_motion(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    segments: Sequence[Segment] = LAB_MOTION,
+    *,
+    observers: Sequence[Observer] = (),
+    clip: bool = False,
+    trace: bool | None = None,
+) -> RunResult:
+    """Run a sequence of moves and holds on ``(m, d)`` (:func:`run_segments`)."""
+    return run_segments(
+        Simulation.attach(m, d), segments, observers=observers, clip=clip, trace=trace
+    )
+
+
+__all__ = [
+    "LAB_MOTION",
+    "PROFILES",
+    "STARTING_POSE",
+    "Hold",
+    "Move",
+    "Profile",
+    "RunResult",
+    "Segment",
+    "SegmentResult",
+    "commanded_path",
+    "get_profile",
+    "hold",
+    "move",
+    "plan_move",
+    "run_motion",
+    "run_segments",
+    "steps_for",
+    "validate_segments",
+]

@@ -1,0 +1,34 @@
+"""The preflight: simulate a motion headless and judge it before it runs on hardware.
+
+An output layer: may import ``so101sim.motion``, ``so101sim.sim``, ``so101sim.kinematics``,
+``so101sim.model``, the base modules and ``so101sim.recording`` (plots of robust runs).
+Modules: :mod:`.check` (``preflight``, ``check_motion_file``), :mod:`.measure`, :mod:`.judge`,
+:mod:`.rollout` (variants rolled out in C), :mod:`.variants` (perturbed models),
+:mod:`.robust` (``check --variants``), :mod:`.distributed` (the variants over Ray).
+"""
+
+from .check import (
+    Contact,
+    Finding,
+    JointCheck,
+    PreflightReport,
+    StepCheck,
+    Thresholds,
+    check_motion_file,
+    describe,
+    format_report,
+    preflight,
+)
+
+__all__ = [
+    "Contact",
+    "Finding",
+    "JointCheck",
+    "PreflightReport",
+    "StepCheck",
+    "Thresholds",
+    "check_motion_file",
+    "describe",
+    "format_report",
+    "preflight",
+]

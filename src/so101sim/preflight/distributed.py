@@ -1,0 +1,75 @@
+"""Robust preflight past one machine: the variants of a :class:`~so101sim.preflight.robust.
+VariantJob` in chunks over Ray tasks.
+
+Ray is an optional extra (``pip install "so101sim[ray]"``), imported only when asked for. Each
+task runs :func:`~so101sim.preflight.robust.run_chunk` on variants ``start:stop`` (one
+thread: Ray gives each task a CPU); every variant is drawn from the job's seed up front, so the
+merged result is the same as the local run's, variant for variant.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Sequence
+from types import ModuleType
+
+from ..errors import SettingError
+from ..validation import check_count
+from .robust import VariantJob, run_chunk
+from .rollout import VariantOutcome
+
+RAY_HINT = 'pip install "so101sim[ray]"'
+DEFAULT_CHUNK = 64
+"""Variants per Ray task: about two seconds of the lab motion on one core."""
+
+
+def import_ray() -> ModuleType:
+    """The ``ray`` module, or SettingError saying how to install it."""
+    try:
+        return importlib.import_module("ray")
+    except ImportError:
+        raise SettingError(
+            f"--ray needs Ray, which is not installed; install it with: {RAY_HINT}"
+        ) from None
+
+
+def chunks(count: int, size: int) -> list[tuple[int, int]]:
+    """``[start, stop)`` ranges covering ``0..count`` in order, each at most ``size`` long."""
+    size = check_count(size, "chunk size", minimum=1)
+    return [(a, min(a + size, count)) for a in range(0, count, size)]
+
+
+def merge(parts: Sequence[Sequence[VariantOutcome]], count: int) -> list[VariantOutcome]:
+    """The chunks' outcomes back in variant order; raises if any variant is missing or twice."""
+    out = [o for part in parts for o in part]
+    if [o.index for o in out] != list(range(count)):
+        raise SettingError(
+            f"the Ray tasks returned {len(out)} results for {count} variants, out of order or "
+            "incomplete; expected every variant once"
+        )
+    return out
+
+
+def run_on_ray(
+    job: VariantJob, address: str | None = "auto", *, chunk: int = DEFAULT_CHUNK
+) -> list[VariantOutcome]:
+    """Run ``job`` on Ray: ``address`` "auto" (a running cluster), "local" (start one here),
+    an address such as ``ray://host:10001``, or None (Ray already initialised by the caller).
+    """
+    ray = import_ray()
+    if address is not None and not ray.is_initialized():
+        try:
+            ray.init(address=None if address == "local" else address)
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise SettingError(
+                f"--ray {address}: no Ray cluster to join ({first}); expected a running "
+                "cluster (`ray start --head`, then --ray auto), its address, or --ray local "
+                "to start one here"
+            ) from None
+    task = ray.remote(num_cpus=1)(run_chunk)
+    refs = [task.remote(job, a, b, 1) for a, b in chunks(job.count, chunk)]
+    return merge(ray.get(refs), job.count)
+
+
+__all__ = ["DEFAULT_CHUNK", "RAY_HINT", "chunks", "import_ray", "merge", "run_on_ray"]

@@ -1,0 +1,339 @@
+"""Robust preflight: the single check (:mod:`so101sim.preflight`) on N perturbed arms.
+
+:func:`check_variants` draws N variants (:mod:`so101sim.preflight.variants`; ranges from the motion
+file's ``[variants]`` table, else the defaults), rolls the motion out on each on all cores
+(:mod:`so101sim.preflight.rollout`), judges each with the single check's judge and returns a
+:class:`VariantsReport`: the fraction that PASS, the worst case per check (limit margin,
+effort, tracking error, contacts) with that variant's parameters, and per-variant figures for
+:func:`plot_variants`.
+
+A run is a :class:`VariantJob`, plain data: :func:`run_chunk` runs variants ``start:stop`` of
+it anywhere (this process, or a Ray worker, :mod:`so101sim.preflight.distributed`); every variant is
+drawn up front from the seed, so the result is the same whatever the threads or chunks.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import SettingError
+from ..model.load import arm_units, load_model, scene_path
+from ..motion.file import MotionFile, parse_motion
+from ..motion.lines import MAX_FILE_BYTES, load_toml, read_text_limited
+from ..validation import check_count
+from .check import describe
+from .judge import Thresholds
+from .rollout import (
+    VariantOutcome,
+    Worker,
+    name_contacts,
+    plan_motion,
+    run_variants,
+    sensor_model,
+)
+from .variants import (
+    Variant,
+    VariantRanges,
+    check_variant_count,
+    ranges_from_table,
+    sample_variants,
+)
+
+MAX_THREADS = 1024
+MAX_SEED = 2**63 - 1
+
+
+@dataclass(frozen=True)
+class VariantJob:
+    """Everything a run needs, as plain data (it travels to Ray workers)."""
+
+    motion_text: str
+    motion_path: str
+    model_path: str
+    count: int
+    seed: int = 0
+    ranges: VariantRanges = field(default_factory=VariantRanges)
+    thresholds: Thresholds = field(default_factory=Thresholds)
+    strict: bool = False
+
+    def variants(self) -> list[Variant]:
+        return sample_variants(self.count, self.seed, self.ranges)
+
+
+def read_motion(path: str | Path) -> tuple[str, dict[str, Any], Any]:
+    """A motion file's text, its TOML data and key lines (errors with file and line)."""
+    from ..motion.file import load_motion
+
+    load_motion(path)  # every check of the motion itself, with its messages
+    text = read_text_limited(Path(path), MAX_FILE_BYTES)
+    data, loc = load_toml(text, str(path))
+    return text, data, loc
+
+
+def make_job(
+    path: str | Path,
+    *,
+    count: int,
+    seed: int = 0,
+    model: str | Path | None = None,
+    thresholds: Thresholds | None = None,
+    strict: bool = False,
+    ranges: VariantRanges | None = None,
+) -> VariantJob:
+    """Check every setting (count and seed first, before anything is read or allocated) and
+    read the motion file and its ``[variants]`` table.
+
+    Raises:
+        SettingError: a count out of 1..100000, a bad seed.
+        MotionFileError: the motion file or its ``[variants]`` table is invalid (file:line).
+    """
+    count = check_variant_count(count)
+    seed = check_count(seed, "seed", maximum=MAX_SEED)
+    text, data, loc = read_motion(path)
+    if ranges is None:
+        ranges = VariantRanges()
+        if "variants" in data:
+            ranges = ranges_from_table(data["variants"], path=str(path), line_of=loc.line)
+    return VariantJob(
+        motion_text=text,
+        motion_path=str(path),
+        model_path=str(Path(model).expanduser() if model is not None else scene_path()),
+        count=count,
+        seed=seed,
+        ranges=ranges,
+        thresholds=thresholds if thresholds is not None else Thresholds(),
+        strict=strict,
+    )
+
+
+def _prepare(job: VariantJob) -> tuple[Any, Any, MotionFile]:
+    load_model(job.model_path)  # the model's own errors (missing file, no SO-101 joints)
+    base = sensor_model(job.model_path)
+    motion = parse_motion(job.motion_text, path=job.motion_path, units=arm_units(base))
+    plan = plan_motion(base, motion.steps, motion.start, lines=motion.lines, strict=job.strict)
+    return base, plan, motion
+
+
+def run_chunk(
+    job: VariantJob, start: int = 0, stop: int | None = None, threads: int | None = None
+) -> list[VariantOutcome]:
+    """Variants ``start:stop`` of ``job``, each rolled out and judged (all cores by default)."""
+    stop = job.count if stop is None else stop
+    base, plan, _ = _prepare(job)
+    todo = job.variants()[start:stop]
+    n_threads = threads if threads is not None else (os.cpu_count() or 1)
+    return run_variants(base, plan, todo, job.thresholds, n_threads)
+
+
+# ---------------------------------------------------------------------------- the report
+@dataclass(frozen=True)
+class Worst:
+    """The worst variant for one check."""
+
+    check: str  # "limit margin" | "effort" | "tracking error" | "contact"
+    variant: Variant
+    outcome: VariantOutcome
+    text: str  # the figure in words
+
+
+@dataclass(frozen=True)
+class VariantsReport:
+    """N variants judged."""
+
+    job: VariantJob
+    outcomes: tuple[VariantOutcome, ...]
+    worst: tuple[Worst, ...]
+    contacts: tuple[str, ...] = ()  # what the worst-contact variant touched, named by a replay
+
+    @property
+    def passed(self) -> int:
+        return sum(o.passed for o in self.outcomes)
+
+    @property
+    def fraction(self) -> float:
+        return self.passed / len(self.outcomes) if self.outcomes else 0.0
+
+    def failing(self) -> dict[str, int]:
+        """How many variants fail each kind of check."""
+        counts: dict[str, int] = {}
+        for o in self.outcomes:
+            for kind in sorted({type(f).__name__.removesuffix("Finding") for f in o.failures}):
+                counts[kind] = counts.get(kind, 0) + 1
+        return counts
+
+    def to_dict(self) -> dict[str, Any]:
+        th = self.job.thresholds
+        return {
+            "variants": len(self.outcomes),
+            "seed": self.job.seed,
+            "passed": self.passed,
+            "fraction_passed": self.fraction,
+            "failing_by_check": self.failing(),
+            "ranges": asdict(self.job.ranges),
+            "thresholds": asdict(th),
+            "worst": [
+                {
+                    "check": w.check,
+                    "text": w.text,
+                    "variant": w.variant.to_dict(),
+                    "passed": w.outcome.passed,
+                    "failures": [describe(f, th) for f in w.outcome.failures],
+                }
+                for w in self.worst
+            ],
+            "contacts": list(self.contacts),
+            "per_variant": [
+                {k: v for k, v in asdict(o).items() if k != "failures"} for o in self.outcomes
+            ],
+        }
+
+
+def summarize(job: VariantJob, outcomes: list[VariantOutcome]) -> VariantsReport:
+    """The report of ``outcomes`` (in variant order); the deepest contact is replayed here to
+    name the bodies."""
+    variants = job.variants()
+    worst: list[Worst] = []
+    if outcomes:
+        o = min(outcomes, key=lambda o: o.limit_margin)
+        worst.append(Worst("limit margin", variants[o.index], o, f"{o.limit_margin:.2f}°"))
+        o = max(outcomes, key=lambda o: (o.saturated, o.peak_effort))
+        text = f"saturated {o.saturated * 1000:.0f} ms (peak {o.peak_effort:.0%})"
+        worst.append(Worst("effort", variants[o.index], o, text))
+        o = max(outcomes, key=lambda o: o.tracking_error)
+        worst.append(Worst("tracking error", variants[o.index], o, f"{o.tracking_error:.2f}°"))
+    touched = [o for o in outcomes if o.touched]
+    contacts: tuple[str, ...] = ()
+    if touched:
+        o = max(touched, key=lambda o: o.contact_depth)
+        worst.append(Worst("contact", variants[o.index], o, f"{o.contact_depth * 1000:.1f} mm"))
+        base, plan, _ = _prepare(job)
+        named = name_contacts(Worker(base, plan, job.thresholds), variants[o.index])
+        contacts = tuple(
+            f"step {k}: {c.body1} touches {c.body2} at t = {c.first_time:.3f} s "
+            f"(up to {c.max_penetration * 1000:.1f} mm deep)"
+            for k, c in named
+        )
+    return VariantsReport(job, tuple(outcomes), tuple(worst), contacts)
+
+
+def check_variants(
+    path: str | Path,
+    *,
+    count: int,
+    seed: int = 0,
+    threads: int | None = None,
+    model: str | Path | None = None,
+    thresholds: Thresholds | None = None,
+    strict: bool = False,
+    ranges: VariantRanges | None = None,
+) -> VariantsReport:
+    """Run the motion file at ``path`` on ``count`` perturbed arms and judge each.
+
+    ``threads``: at most this many (default: every core); the result does not depend on it.
+
+    Raises:
+        SettingError: a bad count (1..100000), seed or thread count, before anything runs.
+        MotionFileError: the motion file or its ``[variants]`` table is invalid.
+    """
+    if threads is not None:
+        threads = check_count(threads, "threads", minimum=1, maximum=MAX_THREADS)
+    job = make_job(
+        path, count=count, seed=seed, model=model, thresholds=thresholds, strict=strict,
+        ranges=ranges,
+    )  # fmt: skip
+    return summarize(job, run_chunk(job, threads=threads))
+
+
+def _params(v: Variant) -> str:
+    def span(values: np.ndarray, unit: str = "×") -> str:
+        lo, hi = float(values.min()), float(values.max())
+        return f"{unit}{lo:.2f}-{hi:.2f}" if unit == "×" else f"{lo:+.2f}..{hi:+.2f}{unit}"
+
+    return (
+        f"payload {v.payload_kg:.3f} kg, kp {span(v.kp_scale)}, kv {span(v.kv_scale)}, "
+        f"force limit {span(v.force_scale)}, damping {span(v.damping_scale)}, friction "
+        f"{span(v.frictionloss_scale)}, armature {span(v.armature_scale)}, zero offsets "
+        f"{span(v.zero_offset_deg, '°')}"
+    )
+
+
+def format_variants(report: VariantsReport) -> str:
+    """The report in words: PASS fraction, failures per check, the worst case per check."""
+    job, th = report.job, report.job.thresholds
+    n = len(report.outcomes)
+    rows = [
+        f"robust preflight: {n} variants of {job.motion_path} (seed {job.seed})",
+        f"PASS {report.passed}/{n} ({report.fraction:.1%})",
+    ]
+    rows.extend(f"  failing {kind}: {k} variant(s)" for kind, k in report.failing().items())
+    for w in report.worst:
+        verdict = "PASS" if w.outcome.passed else "FAIL"
+        rows.append(f"worst {w.check}: {w.text}, variant {w.variant.index} ({verdict})")
+        rows.append(f"    {_params(w.variant)}")
+        rows.extend(f"    - {describe(f, th)}" for f in w.outcome.failures[:3])
+    rows.extend(f"  contact: {c}" for c in report.contacts[:5])
+    if not any(o.touched for o in report.outcomes):
+        rows.append("contacts: none in any variant")
+    return "\n".join(rows)
+
+
+def check_plot_path(path: str | Path, *, force: bool = False) -> Path:
+    """Check that the histogram can be written to ``path`` (before anything runs): an
+    existing file only with ``force``."""
+    from ..recording.paths import check_output_path  # imported here: only plots need it
+    from ..recording.plot import PLOT_SUFFIXES
+
+    return check_output_path(path, force=force, what="plot", suffixes=PLOT_SUFFIXES)
+
+
+def plot_variants(report: VariantsReport, path: str | Path, *, force: bool = False) -> Path:
+    """Histograms of every variant's peak tracking error (body joints, degrees) and longest
+    saturation (ms), with the thresholds; written with matplotlib's Agg backend."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # only to keep start-up fast
+    from matplotlib.figure import Figure
+
+    from ..recording.paths import check_output_path, write_atomically
+    from ..recording.plot import PLOT_SUFFIXES
+
+    p = check_output_path(path, force=force, what="plot", suffixes=PLOT_SUFFIXES)
+    if not report.outcomes:
+        raise SettingError("nothing to plot: no variants were run; expected at least one")
+    th = report.job.thresholds
+    fig = Figure(figsize=(10, 4), dpi=100, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax1, ax2 = fig.subplots(1, 2)
+    track = [o.tracking_error for o in report.outcomes]
+    sat = [o.saturated * 1000 for o in report.outcomes]
+    ax1.hist(track, bins=40, color="#4c72b0")
+    ax1.axvline(th.max_tracking_error, color="#c44e52", ls="--", label="threshold")
+    ax1.set_xlabel("peak tracking error, body joints (degrees)")
+    ax2.hist(sat, bins=40, color="#55a868")
+    ax2.axvline(th.max_saturation * 1000, color="#c44e52", ls="--", label="threshold")
+    ax2.set_xlabel(f"longest effort above {th.max_effort:.0%} of the force limit (ms)")
+    for ax in (ax1, ax2):
+        ax.set_ylabel("variants")
+        ax.legend(fontsize="small")
+    fig.suptitle(
+        f"{len(report.outcomes)} variants (seed {report.job.seed}): {report.fraction:.1%} PASS"
+    )
+    fmt = p.suffix.lstrip(".").lower()
+    return write_atomically(p, lambda tmp: fig.savefig(tmp, format=fmt), what="plot")
+
+
+__all__ = [
+    "VariantJob",
+    "VariantsReport",
+    "Worst",
+    "check_plot_path",
+    "check_variants",
+    "format_variants",
+    "make_job",
+    "plot_variants",
+    "run_chunk",
+    "summarize",
+]

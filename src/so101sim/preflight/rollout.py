@@ -1,0 +1,442 @@
+"""Preflight over many arms: run one motion on perturbed models with ``mujoco.rollout`` and
+measure each as the single check does.
+
+* **Plan once.** :func:`plan_motion` plans what the motion commands at every physics step
+  (:func:`~so101sim.motion.commanded_path`, one segment at a time to know where each step of
+  the motion ends). Every variant gets the same targets, shifted by its zero offsets.
+* **Measure from the rollout.** A copy of the model gets sensors at load time (``MjSpec``; the
+  vendored files stay unchanged, physics bit for bit the same: sensors only read): one
+  ``actuatorfrc`` per arm actuator (the force that acted during the step, as the single check
+  reads ``data.actuator_force``) and one ``contact`` sensor matching every contact (how many,
+  and the smallest distance). The rollout's states give ``qpos``; so every figure of the
+  single check comes out of the rollout's outputs, except the names of the bodies that
+  touched: :func:`name_contacts` replays one variant step by step to name them (only the
+  variants a report shows).
+* **All cores.** One Python thread per core, each with its own model copy, ``MjData`` and
+  ``Rollout(nthread=0)`` (it steps on the calling thread and lets go of the GIL), takes the
+  next variant, writes it into its model
+  (:func:`~so101sim.preflight.variants.apply_variant`) and rolls
+  it out in blocks of at most :data:`BLOCK` steps, reducing each block at once (memory stays
+  flat however long the motion). A variant's result depends only on the variant, never on
+  the thread that ran it.
+
+The figures are then judged by :func:`so101sim.preflight.judge.judge`, the single check's own.
+
+(About 440 lines: the block-by-block reduction mirrors :mod:`so101sim.preflight.measure` figure
+for figure, and is kept next to the rollout loop that feeds it.)
+"""
+
+from __future__ import annotations
+
+import copy
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from mujoco import rollout as _rollout
+
+from ..errors import ModelError
+from ..model.cache import load_or_compile
+from ..model.load import arm_index, arm_units
+from ..motion.segments import Hold, Segment, commanded_path
+from ..sim.limited import ShortMove, check_limited_moves
+from ..sim.simulation import Simulation
+from ..units import GRIPPER, JOINT_NAMES, ArmUnits, Pose
+from .judge import Finding, Thresholds, judge
+from .measure import Contact, JointCheck, Measurements, StepCheck
+from .variants import Variant, apply_variant
+
+BLOCK = 4096
+"""Steps rolled out per call: at most this many states per variant are held at once."""
+
+CONTACT_SENSOR = "so101sim_preflight_contact"
+_SENSOR_CACHE_KEY = "preflight-sensors-1"
+_CTRL = mujoco.mjtState.mjSTATE_CTRL.value
+_FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+@dataclass(frozen=True)
+class MotionPlan:
+    """What a motion commands, planned once for every variant."""
+
+    phases: tuple[str, ...]
+    kinds: tuple[str, ...]  # "move" | "hold"
+    lines: tuple[int, ...]
+    targets: np.ndarray  # (n, 6) radians, one row per physics step
+    bounds: np.ndarray  # (steps + 1,) sample index where each step of the motion starts
+    start: np.ndarray  # (6,) radians: the start pose, at rest
+    stretched: tuple[ShortMove, ...]
+
+
+def plan_motion(
+    model: mujoco.MjModel,
+    steps: Sequence[Segment],
+    start: Pose,
+    *,
+    lines: Sequence[int] = (),
+    strict: bool = False,
+) -> MotionPlan:
+    """Plan ``steps`` from ``start`` (checked as the single check checks them)."""
+    sim = Simulation(model, initial_pose=start)
+    stretched = check_limited_moves(
+        sim.commanded_array(), steps, sim.timestep, units=sim.units, strict=strict
+    )
+    units = sim.units
+    rows, pose = [], dict(start)
+    for seg in steps:
+        _, targets = commanded_path(model, [seg], pose)
+        rows.append(targets)
+        pose = units.array_to_pose(targets[-1])
+    sizes = [len(r) for r in rows]
+    return MotionPlan(
+        phases=tuple(s.phase for s in steps),
+        kinds=tuple("hold" if isinstance(s, Hold) else "move" for s in steps),
+        lines=tuple(int(lines[k]) if k < len(lines) else 0 for k in range(len(steps))),
+        targets=units.to_radians(np.vstack(rows)),
+        bounds=np.concatenate([[0], np.cumsum(sizes)]).astype(int),
+        start=units.to_radians(units.pose_to_array(start)),
+        stretched=tuple(stretched),
+    )
+
+
+def sensor_model(path: str | Path) -> mujoco.MjModel:
+    """The model at ``path`` with the preflight's sensors added (compiled once per content,
+    through the model cache)."""
+    p = Path(path)
+
+    def build() -> mujoco.MjModel:
+        spec = mujoco.MjSpec.from_file(str(p))
+        found, dist, mindist = 1 << 0, 1 << 3, 1  # mjtConDataField bits, mjtConReduce
+        spec.add_sensor(
+            name=CONTACT_SENSOR,
+            type=mujoco.mjtSensor.mjSENS_CONTACT,
+            intprm=[found | dist, mindist, 1],
+        )
+        for name in JOINT_NAMES:
+            spec.add_sensor(
+                name=f"so101sim_preflight_force_{name}",
+                type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+                objtype=mujoco.mjtObj.mjOBJ_ACTUATOR,
+                objname=_actuator_name(spec, name),
+            )
+        return spec.compile()
+
+    model = load_or_compile(p.resolve(), build, variant=_SENSOR_CACHE_KEY)
+    arm_index(model)
+    return model
+
+
+def _actuator_name(spec: mujoco.MjSpec, joint: str) -> str:
+    """The name of the actuator driving ``joint`` (named here if it had no name)."""
+    for a in spec.actuators:
+        if a.target == joint:
+            if not a.name:
+                a.name = f"so101sim_preflight_{joint}"
+            return a.name
+    raise ModelError(f"model has no actuator driving the joint {joint!r}")
+
+
+# ---------------------------------------------------------------------------- one variant
+@dataclass(frozen=True)
+class VariantOutcome:
+    """One variant judged: the verdict, its failures (the judge's findings) and its worst
+    figure per check (arm units: degrees, gripper 0–100)."""
+
+    index: int
+    passed: bool
+    failures: tuple[Finding, ...]
+    limit_margin: float  # smallest over the body joints and every step
+    peak_effort: float  # largest fraction of the force limit
+    saturated: float  # s: longest stretch above max_effort
+    tracking_error: float  # largest over the body joints, degrees
+    contact_depth: float  # m: deepest penetration (0 if nothing touched)
+    touched: bool
+
+
+class _Accumulator:
+    """Per step of the motion and joint, the single check's figures, block by block."""
+
+    def __init__(self, n: int, units: ArmUnits) -> None:
+        lo, hi = units.limits
+        self.lo, self.hi = lo, hi
+        self.to_lower = np.full((n, 6), np.inf)
+        self.to_upper = np.full((n, 6), np.inf)
+        self.peak = np.zeros((n, 6))
+        self.longest = np.zeros((n, 6), dtype=int)
+        self.sat_end = np.zeros((n, 6))
+        self.track = np.zeros((n, 6))
+        self.track_at = np.zeros((n, 6))
+        self.contact_t = np.full(n, np.nan)
+        self.depth = np.zeros(n)
+        self.ends = np.zeros(n)
+        self.starts = np.zeros(n)
+        self.run = np.zeros(6, dtype=int)
+        self.seen_force = np.zeros((n, 6), dtype=bool)  # the step has seen a sample
+        self.seen_motion = np.zeros((n, 6), dtype=bool)
+
+    def begin(self, j: int, start: np.ndarray) -> None:
+        """Step ``j`` starts from the commanded target ``start`` (counts for its margin)."""
+        self.to_lower[j] = start - self.lo
+        self.to_upper[j] = self.hi - start
+
+    def add_forces(self, j: int, t, effort, runs, found, dist) -> None:
+        """What the single check's step recorder sees in step ``j``: effort, run lengths of
+        saturation, contact count and smallest distance at the times ``t``."""
+        new = ~self.seen_force[j]
+        self.peak[j] = np.maximum(self.peak[j], effort.max(axis=0))
+        k = runs.argmax(axis=0)
+        best = runs[k, range(6)]
+        better = (best > self.longest[j]) | new
+        self.longest[j] = np.where(better, best, self.longest[j])
+        self.sat_end[j] = np.where(better, t[k], self.sat_end[j])
+        self.seen_force[j] = True
+        touching = found > 0
+        if touching.any():
+            if np.isnan(self.contact_t[j]):
+                self.contact_t[j] = t[touching.argmax()]
+            self.depth[j] = max(self.depth[j], float(-dist[touching].min()))
+
+    def add_motion(self, j: int, t, cmd, meas) -> None:
+        """Step ``j``'s commanded and measured poses (arm units) at the times ``t``."""
+        for rows in (cmd, meas):
+            self.to_lower[j] = np.minimum(self.to_lower[j], (rows - self.lo).min(axis=0))
+            self.to_upper[j] = np.minimum(self.to_upper[j], (self.hi - rows).min(axis=0))
+        err = np.abs(cmd - meas)
+        k = err.argmax(axis=0)
+        best = err[k, range(6)]
+        better = (best > self.track[j]) | ~self.seen_motion[j]
+        self.track[j] = np.where(better, best, self.track[j])
+        self.track_at[j] = np.where(better, t[k], self.track_at[j])
+        self.seen_motion[j] = True
+        self.ends[j] = t[-1]
+
+    def steps(self, plan: MotionPlan, dt: float) -> tuple[StepCheck, ...]:
+        out = []
+        for j in range(len(plan.phases)):
+            longest = self.longest[j] * dt
+            sat_start = np.maximum(self.sat_end[j] - longest, self.starts[j])
+            joints = {
+                name: JointCheck(
+                    limit_margin=float(min(self.to_lower[j, i], self.to_upper[j, i])),
+                    limit_side="lower" if self.to_lower[j, i] <= self.to_upper[j, i] else "upper",
+                    peak_effort=float(self.peak[j, i]),
+                    saturated=float(longest[i]),
+                    peak_tracking_error=float(self.track[j, i]),
+                    saturation_time=float(sat_start[i]),
+                    peak_tracking_time=float(self.track_at[j, i]),
+                )
+                for i, name in enumerate(JOINT_NAMES)
+            }
+            contacts = ()
+            if not np.isnan(self.contact_t[j]):
+                depth = max(0.0, float(self.depth[j]))
+                contacts = (Contact("arm", "(see the replay)", float(self.contact_t[j]), depth),)
+            out.append(
+                StepCheck(
+                    index=j + 1,
+                    phase=plan.phases[j],
+                    kind=plan.kinds[j],
+                    line=plan.lines[j],
+                    start_time=float(self.starts[j]),
+                    end_time=float(self.ends[j]),
+                    joints=joints,
+                    contacts=contacts,
+                )
+            )
+        return tuple(out)
+
+
+def _run_lengths(above: np.ndarray, carry: np.ndarray) -> np.ndarray:
+    """Per sample and column: consecutive True samples up to it, counting ``carry`` True
+    samples before the block."""
+    idx = np.arange(1, len(above) + 1)[:, None]
+    last_false = np.maximum.accumulate(np.where(above, 0, idx), axis=0)
+    runs = idx - last_false
+    return np.where(last_false == 0, runs + carry, runs)
+
+
+class Worker:
+    """One thread's model copy, data and rollout runner; runs variants one at a time."""
+
+    def __init__(self, base: mujoco.MjModel, plan: MotionPlan, thresholds: Thresholds) -> None:
+        self.base, self.plan, self.th = base, plan, thresholds
+        self.m = copy.copy(base)
+        self.d = mujoco.MjData(self.m)
+        self.runner = _rollout.Rollout(nthread=0)
+        self.idx = arm_index(base)
+        self.units = arm_units(base)
+        sid = mujoco.mj_name2id(base, mujoco.mjtObj.mjOBJ_SENSOR, CONTACT_SENSOR)
+        self.contact_adr = int(base.sensor_adr[sid])
+        self.force_adr = self.contact_adr + 2 + np.arange(len(JOINT_NAMES))
+
+    def _start(self, v: Variant) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The variant's offsets (rad) and its state and warm start at rest at the start."""
+        m, d, idx = self.m, self.d, self.idx
+        offset = np.radians(v.zero_offset_deg)
+        apply_variant(m, self.base, v, d)
+        mujoco.mj_resetData(m, d)
+        q = self.plan.start - offset
+        d.qpos[idx.qpos] = q
+        d.qvel[idx.dof] = 0.0
+        d.ctrl[idx.actuator] = q
+        mujoco.mj_forward(m, d)
+        s0 = np.empty(mujoco.mj_stateSize(m, _FULL))
+        mujoco.mj_getState(m, d, s0, _FULL)
+        return offset, s0, d.qacc_warmstart.copy()
+
+    def blocks(self, offset: np.ndarray, s0: np.ndarray, warm: np.ndarray):
+        """Yield ``(first sample, times, ctrl rad, qpos rad, sensordata)`` block by block,
+        from the state ``s0`` (warm start ``warm``), targets shifted by ``offset`` (rad)."""
+        m, d, idx = self.m, self.d, self.idx
+        targets, n = self.plan.targets, len(self.plan.targets)
+        nstate = len(s0)
+        for a in range(0, n, BLOCK):
+            k = min(BLOCK, n - a)
+            ctrl = np.zeros((1, k, m.nu))
+            ctrl[0][:, idx.actuator] = targets[a : a + k] - offset
+            state = np.empty((1, k, nstate))
+            sens = np.empty((1, k, m.nsensordata))
+            self.runner.rollout(
+                [m], [d], s0[None], ctrl, control_spec=_CTRL, skip_checks=True, nstep=k,
+                initial_warmstart=warm[None], state=state, sensordata=sens,
+            )  # fmt: skip
+            s0, warm = state[0, -1].copy(), d.qacc_warmstart.copy()
+            yield a, state[0, :, 0], ctrl[0][:, idx.actuator], state[0][:, 1 + idx.qpos], sens[0]
+
+    def run(self, v: Variant) -> VariantOutcome:
+        """Roll ``v`` out, measure and judge it."""
+        measured = self.measure(v)
+        return _outcome(v.index, measured, judge(measured, self.th))
+
+    def _forces_of(self, acc: _Accumulator, limit: np.ndarray):
+        """A function adding sensor rows of step j to ``acc`` (run lengths carried)."""
+
+        def add(j: int, t: np.ndarray, sens: np.ndarray) -> None:
+            effort = np.abs(sens[:, self.force_adr]) / limit
+            runs = _run_lengths(effort > self.th.max_effort, acc.run)
+            acc.run = runs[-1]
+            found, dist = sens[:, self.contact_adr], sens[:, self.contact_adr + 1]
+            acc.add_forces(j, t, effort, runs, found, dist)
+
+        return add
+
+    def measure(self, v: Variant) -> Measurements:
+        """Roll ``v`` out and measure it as the single check does (contacts unnamed)."""
+        plan, units, dt = self.plan, self.units, self.base.opt.timestep
+        start = units.from_radians(plan.start - np.radians(v.zero_offset_deg))
+        acc = _Accumulator(len(plan.phases), units)
+        last_cmd = start  # the commanded target before the first step
+        offset, s0, warm = self._start(v)  # writes the variant into the model: read it after
+        limit = np.abs(self.m.actuator_forcerange[self.idx.actuator, 1])
+        force_of = self._forces_of(acc, limit)
+        # the single check's recorder also reads the forces and contacts before the first step
+        force_of(0, np.array([s0[0]]), self.d.sensordata[None].copy())
+        prev_t = float(s0[0])  # the time before the block's first sample
+        for a, t, ctrl, qpos, sens in self.blocks(offset, s0, warm):
+            cmd, meas = units.from_radians(ctrl), units.from_radians(qpos)
+            for j in range(len(plan.phases)):
+                lo = max(plan.bounds[j] - a, 0)
+                hi = min(plan.bounds[j + 1] - a, len(t))
+                if lo >= hi:
+                    continue
+                if plan.bounds[j] - a == lo:  # the step begins in this block
+                    acc.starts[j] = t[lo - 1] if lo > 0 else prev_t
+                    acc.begin(j, cmd[lo - 1] if lo > 0 else last_cmd)
+                sl = slice(lo, hi)
+                force_of(j, t[sl], sens[sl])
+                acc.add_motion(j, t[sl], cmd[sl], meas[sl])
+            prev_t, last_cmd = float(t[-1]), cmd[-1]
+        return Measurements(acc.steps(plan, dt), units.limits_dict(), plan.stretched)
+
+
+def _outcome(index: int, measured: Measurements, findings: tuple[Finding, ...]) -> VariantOutcome:
+    body = [n for n in JOINT_NAMES if n != GRIPPER]
+    joints = [s.joints for s in measured.steps]
+    depths = [c.max_penetration for s in measured.steps for c in s.contacts]
+    return VariantOutcome(
+        index=index,
+        passed=not any(f.failed for f in findings),
+        failures=tuple(f for f in findings if f.failed),
+        limit_margin=min(js[n].limit_margin for js in joints for n in body),
+        peak_effort=max(j.peak_effort for js in joints for j in js.values()),
+        saturated=max(j.saturated for js in joints for j in js.values()),
+        tracking_error=max(js[n].peak_tracking_error for js in joints for n in body),
+        contact_depth=max(depths, default=0.0),
+        touched=bool(depths),
+    )
+
+
+def run_variants(
+    base: mujoco.MjModel,
+    plan: MotionPlan,
+    variants: Sequence[Variant],
+    thresholds: Thresholds,
+    threads: int,
+) -> list[VariantOutcome]:
+    """Every variant rolled out and judged, on ``threads`` threads, in ``variants``' order."""
+    results: list[VariantOutcome | None] = [None] * len(variants)
+    todo = iter(range(len(variants)))
+    lock = threading.Lock()
+    errors: list[BaseException] = []
+
+    def work() -> None:
+        try:
+            worker = Worker(base, plan, thresholds)
+            while not errors:
+                with lock:
+                    i = next(todo, None)
+                if i is None:
+                    return
+                results[i] = worker.run(variants[i])
+        except BaseException as exc:  # re-raised on the calling thread
+            errors.append(exc)
+
+    count = max(1, min(threads, len(variants)))
+    if count == 1:
+        work()
+    else:
+        pool = [threading.Thread(target=work, daemon=True) for _ in range(count)]
+        for th in pool:
+            th.start()
+        for th in pool:
+            th.join()
+    if errors:
+        raise errors[0]
+    return [r for r in results if r is not None]
+
+
+def name_contacts(worker: Worker, v: Variant) -> list[tuple[int, Contact]]:
+    """Replay ``v`` one step at a time and name what touched: ``(step of the motion, Contact)``
+    per pair of bodies and step, in the order they first touched."""
+    m, d, idx, plan = worker.m, worker.d, worker.idx, worker.plan
+    offset, _, _ = worker._start(v)
+    pairs: dict[tuple[int, int, int], list[float]] = {}
+    step = np.searchsorted(plan.bounds, np.arange(len(plan.targets)), side="right") - 1
+    for i, row in enumerate(plan.targets):
+        d.ctrl[idx.actuator] = row - offset
+        mujoco.mj_step(m, d)
+        for c in d.contact[: d.ncon]:
+            b1, b2 = sorted((int(m.geom_bodyid[c.geom[0]]), int(m.geom_bodyid[c.geom[1]])))
+            key = (int(step[i]), b1, b2)
+            seen = pairs.setdefault(key, [float(d.time), 0.0])
+            seen[1] = max(seen[1], -float(c.dist))
+    label = {b: ("floor" if b == 0 else m.body(b).name) for k in pairs for b in k[1:]}
+    return [
+        (j + 1, Contact(label[b1], label[b2], t, pen))
+        for (j, b1, b2), (t, pen) in sorted(pairs.items(), key=lambda kv: kv[1][0])
+    ]
+
+
+__all__ = [
+    "BLOCK",
+    "MotionPlan",
+    "VariantOutcome",
+    "Worker",
+    "name_contacts",
+    "plan_motion",
+    "run_variants",
+    "sensor_model",
+]

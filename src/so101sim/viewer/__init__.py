@@ -1,0 +1,50 @@
+"""The interactive viewer: MuJoCo's passive viewer on a run, and the pose finder.
+
+An output layer: may import ``so101sim.sim``, ``so101sim.kinematics``, ``so101sim.model``, the
+base modules and ``so101sim.recording`` (the draft meshes). Modules: :mod:`.passive`
+(``open_viewer``, ``has_display``, ``choose_viewer``), :mod:`.posefinder` (``so101sim pose``).
+"""
+
+from .passive import (
+    ARM_DISTANCE,
+    ARM_LOOKAT,
+    MACOS_MESSAGE,
+    NO_DISPLAY_NOTE,
+    SCENE_AZIMUTH,
+    SCENE_ELEVATION,
+    VIEWER_NICE,
+    VIEWER_QUALITIES,
+    MirroredViewer,
+    ViewerChoice,
+    choose_viewer,
+    copy_state,
+    frame_arm,
+    has_display,
+    lower_priority,
+    mirror_model,
+    on_macos_without_mjpython,
+    open_viewer,
+    view,
+)
+
+__all__ = [
+    "ARM_DISTANCE",
+    "ARM_LOOKAT",
+    "MACOS_MESSAGE",
+    "NO_DISPLAY_NOTE",
+    "SCENE_AZIMUTH",
+    "SCENE_ELEVATION",
+    "VIEWER_NICE",
+    "VIEWER_QUALITIES",
+    "MirroredViewer",
+    "ViewerChoice",
+    "choose_viewer",
+    "copy_state",
+    "frame_arm",
+    "has_display",
+    "lower_priority",
+    "mirror_model",
+    "on_macos_without_mjpython",
+    "open_viewer",
+    "view",
+]

@@ -1,0 +1,153 @@
+import os
+import subprocess
+import sys
+import textwrap
+import time
+
+import mujoco
+import numpy as np
+import pytest
+
+from so101sim.model import cache as modelcache
+from so101sim.model import scene_path
+from so101sim.motion import LAB_MOTION, run_segments
+from so101sim.sim.simulation import Simulation
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("SO101SIM_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.delenv("SO101SIM_NO_CACHE", raising=False)
+    return tmp_path / "cache"
+
+
+def _compile():
+    return mujoco.MjModel.from_xml_path(str(scene_path()))
+
+
+def test_a_cached_model_runs_the_lab_motion_bit_for_bit(cache):
+    first = modelcache.load_or_compile(scene_path(), _compile)
+    assert modelcache.info().entries == 1
+    second = modelcache.load_or_compile(scene_path(), lambda: pytest.fail("compiled again"))
+    traces = []
+    for m in (_compile(), first, second):
+        sim = Simulation(m)
+        r = run_segments(sim, LAB_MOTION, trace=True)
+        traces.append(np.vstack([s.measured for s in r.segments]))
+    np.testing.assert_array_equal(traces[0], traces[1])
+    np.testing.assert_array_equal(traces[0], traces[2])
+
+
+def test_a_changed_file_or_mujoco_version_is_another_entry(cache, tmp_path, monkeypatch):
+    from so101sim.model import model_dir
+
+    copy = tmp_path / "model"
+    copy.mkdir()
+    for f in model_dir().iterdir():
+        if f.is_file():
+            (copy / f.name).write_bytes(f.read_bytes())
+    (copy / "assets").symlink_to(model_dir() / "assets")
+    k1 = modelcache.key_for(copy / "scene.xml")
+    (copy / "scene.xml").write_text((copy / "scene.xml").read_text() + "\n<!-- edited -->\n")
+    assert modelcache.key_for(copy / "scene.xml") != k1
+    k2 = modelcache.key_for(copy / "scene.xml")
+    monkeypatch.setattr(mujoco, "__version__", "0.0.0")
+    assert modelcache.key_for(copy / "scene.xml") != k2
+    assert modelcache.key_for(copy / "scene.xml", "draft") != modelcache.key_for(copy / "scene.xml")
+
+
+def test_a_broken_entry_is_replaced_and_an_unwritable_cache_falls_back(cache, tmp_path):
+    modelcache.load_or_compile(scene_path(), _compile)
+    entry = next(cache.glob("*.mjb"))
+    entry.write_bytes(b"not a model")
+    m = modelcache.load_or_compile(scene_path(), _compile)
+    assert m.nq == _compile().nq and entry.stat().st_size > 1000
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    os.environ["SO101SIM_CACHE_DIR"] = str(blocker / "sub")  # a folder that cannot be made
+    assert modelcache.load_or_compile(scene_path(), _compile).nq == m.nq
+    assert modelcache.clear().entries == 0  # nothing there, nothing to delete
+
+
+def test_the_cache_can_be_turned_off_and_cleared(cache, monkeypatch):
+    monkeypatch.setenv("SO101SIM_NO_CACHE", "1")
+    modelcache.load_or_compile(scene_path(), _compile)
+    assert modelcache.info().entries == 0
+    monkeypatch.delenv("SO101SIM_NO_CACHE")
+    modelcache.load_or_compile(scene_path(), _compile)
+    assert modelcache.clear().entries == 1
+    assert modelcache.info().entries == 0
+
+
+@pytest.mark.slow
+def test_two_processes_filling_the_cache_at_once_both_get_the_model(cache):
+    code = textwrap.dedent(
+        """
+        from so101sim.model import load_model
+        m = load_model()
+        p = load_model(physics_only=True)
+        print(m.nq, m.nmesh, p.nmeshface)
+        """
+    )
+    env = {**os.environ, "SO101SIM_CACHE_DIR": str(cache)}
+    procs = [
+        subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE, text=True)
+        for _ in range(2)
+    ]
+    outs = [p.communicate(timeout=120)[0].split() for p in procs]
+    assert all(p.returncode == 0 for p in procs)
+    assert outs[0] == outs[1] and outs[0][2] == "0"  # the physics-only model too
+    assert len(list(cache.glob("*.mjb"))) == 2
+    assert not list(cache.glob(".*.partial"))
+
+
+def test_unchanged_files_are_not_read_again_and_a_changed_one_is(cache, tmp_path, monkeypatch):
+    folder = tmp_path / "model"
+    folder.mkdir()
+    xml = folder / "scene.xml"
+    xml.write_text("<mujoco/>")
+    (folder / "mesh.stl").write_bytes(b"a" * 1000)
+    modelcache.key_for(xml)
+    assert not list(cache.glob(f"{modelcache.MEMO_FOLDER}/*.txt"))  # just written: not kept
+    monkeypatch.setattr(modelcache, "MEMO_SETTLE_S", 0.0)
+    first = modelcache.key_for(xml)
+    assert len(list((cache / modelcache.MEMO_FOLDER).glob("*.txt"))) == 1
+    real_read = type(xml).read_bytes
+    with monkeypatch.context() as m:
+        m.setattr(type(xml), "read_bytes", lambda self: pytest.fail(f"{self} read again"))
+        assert modelcache.key_for(xml) == first
+    # same size and modification time, other content: still seen (its change time moved)
+    stat = (folder / "mesh.stl").stat()
+    time.sleep(0.05)  # past the file system clock's tick, as any later edit is
+    (folder / "mesh.stl").write_bytes(b"b" * 1000)
+    os.utime(folder / "mesh.stl", ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    second = modelcache.key_for(xml)
+    assert second != first
+    assert real_read(folder / "mesh.stl") == b"b" * 1000
+    (cache / modelcache.MEMO_FOLDER / "x.txt").write_text("garbage")
+    for memo in (cache / modelcache.MEMO_FOLDER).glob("*.txt"):
+        memo.write_text("not a digest")  # a damaged memo: the files are hashed again
+    assert modelcache.key_for(xml) == second
+    modelcache.clear()
+    assert not list((cache / modelcache.MEMO_FOLDER).glob("*"))
+
+
+def test_a_model_that_cannot_be_trimmed_is_not_tried_again(cache, tmp_path, monkeypatch):
+    (tmp_path / "cloth").mkdir()  # its own folder: the key hashes the model's folder
+    xml = tmp_path / "cloth" / "cloth.xml"
+    xml.write_text(
+        '<mujoco><worldbody><flexcomp name="f" type="grid" count="3 3 1" spacing=".1 .1 .1" '
+        'dim="2"/></worldbody></mujoco>'
+    )
+
+    def compile_cloth():
+        return mujoco.MjModel.from_xml_path(str(xml))
+
+    first = modelcache.load_or_compile(xml, compile_cloth, physics_only=True)
+    assert first.nflex == 1  # the full model: a flex reads the mesh trees
+    assert len(list(cache.glob(f"*{modelcache.REFUSED_SUFFIX}"))) == 1
+    monkeypatch.setattr(modelcache.modeltrim, "physics_only", lambda m: pytest.fail("tried"))
+    again = modelcache.load_or_compile(xml, compile_cloth, physics_only=True)
+    assert again.nflex == 1
+    modelcache.clear()
+    assert not list(cache.glob(f"*{modelcache.REFUSED_SUFFIX}"))
