@@ -42,7 +42,7 @@ from .units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose, unit_warnings
 from .validation import MAX_DURATION_S, check_choice, check_count
 
 if TYPE_CHECKING:
-    from .kinematics import TipPose
+    from .kinematics import Kinematics, TipPose
 
 log = logging.getLogger(__name__)
 
@@ -434,6 +434,7 @@ class Simulation:
         """
         from .kinematics import plan_line, solve_ik  # imported here: only tip moves need it
 
+        _ = self.kinematics  # held here, so that the planner's calls share it
         check_choice(path, "path", ("line", "joint"))
         n = steps_for(_required(duration), self.timestep, maximum=MAX_MOVE_DURATION_S)
         start = self.commanded_array()
@@ -449,9 +450,19 @@ class Simulation:
     def tip(self) -> TipPose:
         """Where the gripper's tip is now (measured): position in metres in the base frame and
         orientation (:class:`~so101sim.kinematics.TipPose`)."""
-        from .kinematics import for_model  # imported here: only tip queries need it
+        return self.kinematics.tip_array(self.pose_array())
 
-        return for_model(self.model).tip_array(self.pose_array())
+    @property
+    def kinematics(self) -> Kinematics:
+        """The model's shared :class:`~so101sim.kinematics.Kinematics`, made on first use and
+        held by this simulation (the table of :func:`~so101sim.kinematics.for_model` holds
+        none: it would keep the model alive)."""
+        kin = self.__dict__.get("_kinematics")
+        if kin is None:
+            from .kinematics import for_model  # imported here: only tip queries need it
+
+            kin = self.__dict__["_kinematics"] = for_model(self.model)
+        return kin
 
     def hold(
         self,
