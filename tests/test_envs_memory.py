@@ -140,3 +140,18 @@ def test_memory_stays_flat_over_100_environment_cycles() -> None:
     growth = figures["after"] - figures["before"]
     assert growth <= 50.0, f"resident memory grew {growth:.0f} MB over 100 cycles ({figures})"
     assert np.isfinite(growth)
+
+
+# ---------------------------------------------------------------------------- misuse
+@pytest.mark.parametrize(
+    "action", ["abc", b"xy", {"a": 1}, object(), 10**400, [1, 2, "x", 4, 5, 6], None, np.nan]
+)
+def test_an_action_that_is_not_numbers_is_a_setting_error(action) -> None:
+    from so101sim.errors import SettingError
+
+    env = gym.make("so101sim/PickCube-v0")
+    env.reset(seed=0)
+    with pytest.raises(SettingError, match="expected 6 finite numbers"):
+        env.step(action)
+    env.close()
+

@@ -21,7 +21,7 @@ from gymnasium import spaces
 from ..errors import SettingError
 from ..kinematics import for_model, solve_ik
 from ..units import GRIPPER_INDEX, ArmUnits
-from ..validation import check_choice, check_range
+from ..validation import check_choice, check_range, shown
 
 CONTROL_MODES = ("joint", "joint_delta", "ee_delta")
 EE_WORKSPACE_M = ((-0.1, 0.45), (-0.4, 0.4), (0.0, 0.45))
@@ -86,10 +86,13 @@ class ActionMap:
         Raises:
             SettingError: the action has the wrong shape or holds NaN or inf.
         """
-        a = np.asarray(action, dtype=float).reshape(-1)
+        try:  # a string, a dict or a huge int is not an action, as NaN or a wrong shape is not
+            a = np.asarray(action, dtype=float).reshape(-1)
+        except (TypeError, ValueError, OverflowError):
+            a = np.full(0, np.nan)
         if a.shape != self.space.shape or not np.isfinite(a).all():
             raise SettingError(
-                f"action {np.asarray(action)!r} is invalid; expected {self.space.shape[0]} finite "
+                f"action {shown(action)} is invalid; expected {self.space.shape[0]} finite "
                 f"numbers for control mode {self.settings.mode!r}"
             )
         a = np.clip(a, self.space.low, self.space.high)
