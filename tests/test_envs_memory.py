@@ -155,3 +155,19 @@ def test_an_action_that_is_not_numbers_is_a_setting_error(action) -> None:
         env.step(action)
     env.close()
 
+
+def test_a_closed_environment_refuses_to_step() -> None:
+    from so101sim.errors import ClosedError
+
+    env = gym.make("so101sim/PickCube-v0", render_mode="rgb_array", render_size=(32, 32))
+    env.reset(seed=0)
+    time = env.unwrapped.sim.time
+    env.close()
+    env.close()  # harmless
+    with pytest.raises(ClosedError, match="closed so101sim/PickCube-v0 environment"):
+        env.step(env.action_space.sample())
+    with pytest.raises(ClosedError):
+        env.reset(seed=1)
+    with pytest.raises(ClosedError):
+        env.render()
+    assert env.unwrapped.sim.time == time  # nothing stepped
