@@ -21,7 +21,7 @@ PACKAGE = Path(so101sim.__file__).parent
 
 # (layer, module patterns), lowest first: a module may import modules of its own layer or below.
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
-    ("errors/validation", ("errors", "validation", "gl", "simclock")),
+    ("errors/validation", ("errors", "validation", "gl", "simclock", "exitgate")),
     ("units", ("units",)),
     ("model", ("model", "modelcache", "modeltrim", "variants")),
     ("planning", ("profiles", "trajectory", "kinematics", "kinematics.*")),

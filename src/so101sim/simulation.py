@@ -27,6 +27,7 @@ import mujoco
 import numpy as np
 
 from .errors import DurationError, ModelError, SettingError
+from .exitgate import gated
 from .model import ArmIndex, arm_index, arm_units, load_model
 from .profiles import (
     MAX_MOVE_DURATION_S,
@@ -215,6 +216,7 @@ class Simulation:
         """Joint name -> (lower, upper) in the arm's units."""
         return self.units.limits_dict()
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def set_pose(self, pose: Pose, *, clip: bool = False) -> None:
         """Place the arm at ``pose`` at rest (velocities zero) and command it to stay there."""
         values = self.units.pose_to_array(pose, clip=clip)
@@ -258,6 +260,7 @@ class Simulation:
         self.data.ctrl[self.index.actuator] = q
         self._state.commanded = True
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def reset(self) -> None:
         """Back to time 0 at the initial pose."""
         with self.lock:
@@ -296,6 +299,7 @@ class Simulation:
         return obs
 
     # -- stepping
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def advance(
         self,
         targets: np.ndarray,
@@ -319,6 +323,7 @@ class Simulation:
             obs = self._observers(viewer, observers)
             return advance(self.model, self.data, q, obs, phase, keep_trace=keep_trace)
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def step(
         self,
         n: int = 1,
@@ -347,6 +352,7 @@ class Simulation:
             keep_trace=_keep(trace, n),
         )
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def plan_move(
         self,
         target: Pose,
@@ -371,6 +377,7 @@ class Simulation:
         start = self.commanded_array()
         return start, plan(start, goal, n, self.timestep, prof)
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def move_to(
         self,
         target: Pose | None = None,
@@ -415,6 +422,7 @@ class Simulation:
                 start, targets = self.plan_move(target, duration, profile=profile, clip=clip)
             return self._segment("move", phase, start, targets, viewer, observers, trace)
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def plan_tip_move(
         self,
         tip: Sequence[float],
@@ -447,6 +455,7 @@ class Simulation:
         )
         return start, line.targets
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def tip(self) -> TipPose:
         """Where the gripper's tip is now (measured): position in metres in the base frame and
         orientation (:class:`~so101sim.kinematics.TipPose`)."""
@@ -464,6 +473,7 @@ class Simulation:
             kin = self.__dict__["_kinematics"] = for_model(self.model)
         return kin
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def hold(
         self,
         duration: float,

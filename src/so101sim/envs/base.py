@@ -32,6 +32,7 @@ import numpy as np
 from gymnasium import spaces
 
 from ..errors import ClosedError, SettingError, SimulationDivergedError, ViewerError
+from ..exitgate import gated
 from ..recording import FREE_CAMERA, QUALITY_CHOICES, FrameRenderer, VideoSettings
 from ..recording.settings import check_quality
 from ..robot_config import GRIPPER_TORQUE_FRACTION
@@ -219,6 +220,7 @@ class So101TaskEnv(SceneState, gym.Env):
         self._randomizer.apply(self.np_random)
 
     # -- the Gymnasium API
+    @gated  # no MuJoCo call left running at exit (exitgate); later ones refused
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -245,6 +247,7 @@ class So101TaskEnv(SceneState, gym.Env):
             self.render()
         return self._observation(), self._info(ev)
 
+    @gated  # no MuJoCo call left running at exit (exitgate); later ones refused
     def step(self, action: np.ndarray) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
         """One control period with ``action``.
 
