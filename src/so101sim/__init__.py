@@ -12,6 +12,7 @@ from . import _compat
 from .errors import (
     CalibrationError,
     CameraError,
+    ClosedError,
     DeviceAlreadyConnectedError,
     DeviceNotConnectedError,
     DurationError,
@@ -106,6 +107,7 @@ __all__ = [
     "ZERO_POSE",
     "CalibrationError",
     "CameraError",
+    "ClosedError",
     "DeviceAlreadyConnectedError",
     "DeviceNotConnectedError",
     "DurationError",

@@ -69,6 +69,10 @@ class SimulationDivergedError(So101SimError, RuntimeError):
     """The physics became unstable (MuJoCo warned, or the state holds NaN/inf)."""
 
 
+class ClosedError(So101SimError, RuntimeError):
+    """An object was used after ``close()`` (a Gymnasium environment stepped after it closed)."""
+
+
 class ViewerError(So101SimError, RuntimeError):
     """The interactive viewer cannot be opened here (no display, macOS without mjpython)."""
 

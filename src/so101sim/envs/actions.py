@@ -21,7 +21,7 @@ from gymnasium import spaces
 from ..errors import SettingError
 from ..kinematics import for_model, solve_ik
 from ..units import GRIPPER_INDEX, ArmUnits
-from ..validation import check_choice, check_range
+from ..validation import check_choice, check_range, shown
 
 CONTROL_MODES = ("joint", "joint_delta", "ee_delta")
 EE_WORKSPACE_M = ((-0.1, 0.45), (-0.4, 0.4), (0.0, 0.45))
@@ -55,6 +55,7 @@ class ActionMap:
 
     def __init__(self, model: mujoco.MjModel, units: ArmUnits, settings: ControlSettings) -> None:
         self.model = model
+        self.kinematics = for_model(model)  # held: for_model's table holds none
         self.units = units
         self.settings = s = settings.validated()
         lower, upper = units.limits
@@ -75,7 +76,7 @@ class ActionMap:
 
     def reset(self, commanded: np.ndarray) -> None:
         """Start from the commanded pose (the ``ee_delta`` target is where it puts the tip)."""
-        tip = for_model(self.model).tip_array(commanded)
+        tip = self.kinematics.tip_array(commanded)
         self._tip, self._pitch, self._roll = tip.position.copy(), tip.pitch, tip.roll
 
     def targets(self, action: np.ndarray, commanded: np.ndarray) -> np.ndarray:
@@ -85,10 +86,13 @@ class ActionMap:
         Raises:
             SettingError: the action has the wrong shape or holds NaN or inf.
         """
-        a = np.asarray(action, dtype=float).reshape(-1)
+        try:  # a string, a dict or a huge int is not an action, as NaN or a wrong shape is not
+            a = np.asarray(action, dtype=float).reshape(-1)
+        except (TypeError, ValueError, OverflowError):
+            a = np.full(0, np.nan)
         if a.shape != self.space.shape or not np.isfinite(a).all():
             raise SettingError(
-                f"action {np.asarray(action)!r} is invalid; expected {self.space.shape[0]} finite "
+                f"action {shown(action)} is invalid; expected {self.space.shape[0]} finite "
                 f"numbers for control mode {self.settings.mode!r}"
             )
         a = np.clip(a, self.space.low, self.space.high)
@@ -118,7 +122,7 @@ class ActionMap:
         if ik.reachable:
             self._tip, self._pitch, self._roll = tip, pitch, roll
         else:  # keep the target where the arm can be, so deltas do not pile up outside reach
-            got = for_model(self.model).tip_array(values)
+            got = self.kinematics.tip_array(values)
             self._tip, self._pitch, self._roll = got.position.copy(), got.pitch, got.roll
         return values
 
@@ -132,7 +136,7 @@ class ActionMap:
         elif mode == "joint_delta":
             a = target - commanded
         else:
-            tip = for_model(self.model).tip_array(target)
+            tip = self.kinematics.tip_array(target)
             turn = (np.array([tip.pitch - self._pitch, tip.roll - self._roll]) + 180) % 360 - 180
             a = np.concatenate([tip.position - self._tip, turn, [target[GRIPPER_INDEX]]])
         return np.clip(a, self.space.low, self.space.high).astype(np.float32)

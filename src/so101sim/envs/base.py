@@ -31,7 +31,8 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from ..errors import SettingError, SimulationDivergedError, ViewerError
+from ..errors import ClosedError, SettingError, SimulationDivergedError, ViewerError
+from ..exitgate import gated
 from ..recording import FREE_CAMERA, QUALITY_CHOICES, FrameRenderer, VideoSettings
 from ..recording.settings import check_quality
 from ..robot.config import GRIPPER_TORQUE_FRACTION
@@ -155,6 +156,7 @@ class So101TaskEnv(SceneState, gym.Env):
         self._viewer_stack: contextlib.ExitStack | None = None
         self._viewer: Any = None
         self._steps = 0
+        self._closed = False
         SceneState.__init__(self, self.model, self.sim, self.scene)  # objects, pads, tip
         self._scale = self.sim.units.scale  # radians per arm unit
 
@@ -218,11 +220,17 @@ class So101TaskEnv(SceneState, gym.Env):
         self._randomizer.apply(self.np_random)
 
     # -- the Gymnasium API
+    @gated  # no MuJoCo call left running at exit (exitgate); later ones refused
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, Any], dict[str, Any]]:
         """Back to the start pose with the objects at poses drawn from the episode's random
-        generator (``options={"placements": {name: (x, y, yaw)}}`` sets them instead)."""
+        generator (``options={"placements": {name: (x, y, yaw)}}`` sets them instead).
+
+        Raises:
+            ClosedError: the environment was closed.
+        """
+        self._check_open("reset")
         super().reset(seed=seed)
         self.sim.reset()
         placements = (options or {}).get("placements")
@@ -239,7 +247,16 @@ class So101TaskEnv(SceneState, gym.Env):
             self.render()
         return self._observation(), self._info(ev)
 
+    @gated  # no MuJoCo call left running at exit (exitgate); later ones refused
     def step(self, action: np.ndarray) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        """One control period with ``action``.
+
+        Raises:
+            SettingError: the action is not valid (not numbers, NaN, the wrong shape).
+            ClosedError: the environment was closed.
+            SimulationDivergedError: the physics became unstable.
+        """
+        self._check_open("step")
         targets = self.actions.targets(action, self.sim.commanded_array())
         self._advance(targets)
         self._steps += 1
@@ -282,7 +299,12 @@ class So101TaskEnv(SceneState, gym.Env):
 
     def render(self) -> np.ndarray | None:
         """``rgb_array``: the frame of ``render_camera`` (``render_size``); ``human``: shows
-        the simulation in MuJoCo's viewer (a display is needed)."""
+        the simulation in MuJoCo's viewer (a display is needed).
+
+        Raises:
+            ClosedError: the environment was closed.
+        """
+        self._check_open("render")
         if self.render_mode == "rgb_array":
             return self._renderer(self.render_camera, self.render_size).render(self.sim.data).copy()
         if self.render_mode == "human":
@@ -303,7 +325,17 @@ class So101TaskEnv(SceneState, gym.Env):
             self._viewer.sync()
         return None
 
+    def _check_open(self, what: str) -> None:
+        if self._closed:
+            raise ClosedError(
+                f"{what}() on a closed {self.spec_name} environment; expected an open one "
+                "(make a new environment after close())"
+            )
+
     def close(self) -> None:
+        """Free the renderers and the viewer; later reset(), step() and render() are refused
+        (closing again is harmless)."""
+        self._closed = True
         for r in self._renderers.values():
             r.close()
         self._renderers.clear()

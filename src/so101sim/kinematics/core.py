@@ -130,9 +130,10 @@ def _site(model: mujoco.MjModel, name: str) -> int:
 class Kinematics:
     """Forward kinematics and Jacobians of one model, on a private scratch ``MjData``.
 
-    One instance per model is cached by :func:`for_model`; its methods hold a lock, so threads
-    may share it. Joint values go in as arrays in :data:`~so101sim.units.JOINT_NAMES` order,
-    radians for :meth:`frame_at` and arm units for :meth:`tip_array`.
+    One instance per model is shared through :func:`for_model` while anything holds it; its
+    methods hold a lock, so threads may share it. Joint values go in as arrays in
+    :data:`~so101sim.units.JOINT_NAMES` order, radians for :meth:`frame_at`
+    and arm units for :meth:`tip_array`.
     """
 
     def __init__(self, model: mujoco.MjModel) -> None:
@@ -257,7 +258,12 @@ class Kinematics:
             return out
 
 
-_instances: weakref.WeakKeyDictionary[mujoco.MjModel, Kinematics] = weakref.WeakKeyDictionary()
+# Held weakly, by the model's id: a Kinematics holds its model (its MjData does), so a table
+# keyed weakly by the model but holding the Kinematics strongly kept every model alive for
+# ever (about 65 MB per Gymnasium environment, issue 23). Whoever uses a model for long holds
+# its Kinematics (Simulation.kinematics, the environments' ActionMap); while one is held, its
+# model is alive and its id cannot be reused.
+_instances: weakref.WeakValueDictionary[int, Kinematics] = weakref.WeakValueDictionary()
 _instances_lock = threading.Lock()
 
 
@@ -265,16 +271,20 @@ _default: list[Kinematics] = []
 
 
 def for_model(model: mujoco.MjModel | None = None) -> Kinematics:
-    """The cached :class:`Kinematics` of ``model`` (the shipped model if None)."""
+    """The shared :class:`Kinematics` of ``model`` (the shipped model if None).
+
+    The table keeps none alive (nor its model): hold the result to reuse it; one nobody holds
+    is made again (about half a millisecond).
+    """
     if model is None:
         if not _default:  # load_model() checks the file each call: too slow for every IK
             _default.append(for_model(load_model()))
         return _default[0]
     m = model
     with _instances_lock:
-        kin = _instances.get(m)
-        if kin is None:
-            kin = _instances[m] = Kinematics(m)
+        kin = _instances.get(id(m))
+        if kin is None or kin.model is not m:
+            kin = _instances[id(m)] = Kinematics(m)
     return kin
 
 

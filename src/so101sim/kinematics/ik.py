@@ -46,6 +46,7 @@ import mujoco
 import numpy as np
 
 from ..errors import UnreachableError
+from ..exitgate import mujoco_call
 from ..units import GRIPPER_INDEX, ZERO_POSE, Pose
 from .core import N_BODY, Frame, Kinematics, TipPose, cross, for_model
 from .goal import (
@@ -297,7 +298,7 @@ def solve_ik(
     start = base if initial is None else kin.pose_values(initial, base=base)
     if gripper is not None:
         start = kin.pose_values({"gripper": gripper}, base=start)
-    with kin.lock:
+    with mujoco_call(), kin.lock:  # refused once the interpreter exits (exitgate)
         att, used, total = solve(kin, goal, np.radians(start[:N_BODY]), s)
         ok = s.accepts(att)
         att.iterations = total

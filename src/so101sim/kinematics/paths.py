@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from ..errors import SettingError, UnreachableError
+from ..exitgate import mujoco_call
 from ..units import GRIPPER_INDEX, JOINT_NAMES, Pose
 from ..validation import check_count
 from .core import N_BODY, Frame, Kinematics, for_model
@@ -183,7 +184,7 @@ def plan_line(
     fractions = _fractions(steps)
     values = kin.pose_values(start)
     q = np.radians(values[:N_BODY])
-    with kin.lock:
+    with mujoco_call(), kin.lock:  # refused once the interpreter exits (exitgate)
         end, _, _ = solve(kin, goal, q, settings)
         if not settings.accepts(end):
             raise UnreachableError(

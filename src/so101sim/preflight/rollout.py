@@ -39,6 +39,7 @@ import numpy as np
 from mujoco import rollout as _rollout
 
 from ..errors import ModelError
+from ..exitgate import mujoco_call
 from ..model.cache import load_or_compile
 from ..model.load import arm_index, arm_units
 from ..motion.segments import Hold, Segment, commanded_path
@@ -299,10 +300,11 @@ class Worker:
             ctrl[0][:, idx.actuator] = targets[a : a + k] - offset
             state = np.empty((1, k, nstate))
             sens = np.empty((1, k, m.nsensordata))
-            self.runner.rollout(
-                [m], [d], s0[None], ctrl, control_spec=_CTRL, skip_checks=True, nstep=k,
-                initial_warmstart=warm[None], state=state, sensordata=sens,
-            )  # fmt: skip
+            with mujoco_call():  # refused once the interpreter exits (exitgate)
+                self.runner.rollout(
+                    [m], [d], s0[None], ctrl, control_spec=_CTRL, skip_checks=True, nstep=k,
+                    initial_warmstart=warm[None], state=state, sensordata=sens,
+                )  # fmt: skip
             s0, warm = state[0, -1].copy(), d.qacc_warmstart.copy()
             yield a, state[0, :, 0], ctrl[0][:, idx.actuator], state[0][:, 1 + idx.qpos], sens[0]
 

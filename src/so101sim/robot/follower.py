@@ -60,6 +60,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, RobotConfigError
+from ..exitgate import gated
 from ..sim.simulation import Simulation
 from ..units import GRIPPER_INDEX, STARTING_POSE, parse_pose
 from ..validation import check_duration
@@ -221,6 +222,7 @@ class SO101SimFollower:
                 self._gripper_forcerange * self.config.gripper_torque_fraction
             )
 
+    @gated  # no MuJoCo call left running at exit (exitgate); later ones refused
     def get_observation(self) -> dict[str, Any]:
         """The measured joint positions: ``{"shoulder_pan.pos": deg, ..., "gripper.pos": %}``,
         and a (height, width, 3) uint8 frame per camera, under the camera's name.
@@ -233,10 +235,12 @@ class SO101SimFollower:
         Raises:
             DeviceNotConnectedError: not connected.
             SimulationDivergedError: the physics became unstable.
+            ClosedError: the interpreter is exiting.
         """
         self._check_connected()
         before_observation(self)  # a scene reset asked for between takes
         with self._lock:
+            self._check_connected()  # again: disconnect() may have ended while we waited
             values = self._sim.pose_values()
             # LeRobot clamps the gripper's reading to its calibrated range (0..100)
             values[GRIPPER_INDEX] = min(100.0, max(0.0, values[GRIPPER_INDEX]))
@@ -248,6 +252,7 @@ class SO101SimFollower:
             obs.update(self._rig.render(shot))  # cameras: rendered outside the physics lock
         return obs
 
+    @gated  # no MuJoCo call left running at exit (exitgate); later ones refused
     def send_action(self, action: Mapping[str, Any]) -> dict[str, float]:
         """Set new goal positions and return the goals actually sent.
 
@@ -260,12 +265,14 @@ class SO101SimFollower:
             DeviceNotConnectedError: not connected.
             JointNameError: an unknown key (the message lists the valid ones).
             JointValueError: a goal that is not a finite number.
+            ClosedError: the interpreter is exiting.
         """
         self._check_connected()
         goals = parse_action(action)  # plain floats from here on: microseconds per action
         names = list(goals)
         idx = [JOINT_INDEX[n] for n in names]
         with self._lock:
+            self._check_connected()  # again: disconnect() may have ended while we waited
             wanted: Any = list(goals.values())
             if self._caps is not None:
                 present = self._sim.pose_array()[idx]
@@ -289,6 +296,8 @@ class SO101SimFollower:
         """
         if not self._connected:
             raise self._not_connected()
+        with self._lock:  # waits for an action or observation in flight (another thread's)
+            self._connected = False
         if self._finalizer is not None:
             self._finalizer()  # stops the threads and removes the exit hook, once
             self._finalizer = None
@@ -337,6 +346,7 @@ class SO101SimFollower:
             values = self._sim.commanded_array()
         return dict(zip(MOTOR_KEYS, values.tolist(), strict=True))
 
+    @gated  # no MuJoCo call left running at exit (exitgate); later ones refused
     def step(self, seconds: float) -> float:
         """Lockstep mode: advance simulated time by ``seconds`` (rounded to whole physics steps)
         holding the current goals; return the new simulated time.
@@ -354,6 +364,7 @@ class SO101SimFollower:
             )
         s = check_duration(seconds, "seconds", allow_zero=True)
         with self._lock:
+            self._check_connected()  # again: disconnect() may have ended while we waited
             self._runner.advance(s)
             return self._sim.time
 

@@ -156,7 +156,9 @@ class RobotScene:
                 f"{follower} has no scene; expected a follower made with a scene preset "
                 f"({', '.join(SCENE_PRESETS)}), e.g. scene='pick_cube'"
             )
-        self.follower = follower
+        # weakly: the table of scenes is keyed weakly by the follower, and a value holding its
+        # key would keep every follower (and its model) alive for ever
+        self._follower = weakref.ref(follower)
         model = follower.simulation.model
         self.scene: TableScene = scene_of(model) or SCENE_PRESETS[name]
         self.placements: dict[str, Placement] = {}
@@ -167,6 +169,17 @@ class RobotScene:
         self.observation_hook: Callable[[], None] | None = None
         """Called before each of the follower's observations, before a pending reset is made
         (the expert teleoperator sees there that LeRobot began a new episode)."""
+
+    @property
+    def follower(self) -> Any:
+        """The follower of this scene.
+
+        Raises:
+            RobotConfigError: the follower is gone (garbage-collected)."""
+        follower = self._follower()
+        if follower is None:
+            raise RobotConfigError("this scene's follower is gone; expected a live follower")
+        return follower
 
     @property
     def name(self) -> str:

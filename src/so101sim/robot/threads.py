@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import ClosedError
 from ..sim.simulation import Pacer, Simulation
 from ..sim.stepping import hold_steps, state_size
 
@@ -137,6 +138,8 @@ class RobotThreads:
                 with lock:
                     self.advance(block)
                     t = sim.time
+        except ClosedError:  # the interpreter is exiting: the exit hook joins this thread
+            pass
         except Exception as exc:  # surfaced by the next call from the user's thread
             self.error = exc
             log.error("%s: the physics thread stopped: %s", self.label, exc)

@@ -27,6 +27,7 @@ import mujoco
 import numpy as np
 
 from ..errors import DurationError, ModelError, SettingError
+from ..exitgate import gated
 from ..model.load import ArmIndex, arm_index, arm_units, load_model
 from ..units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose, unit_warnings
 from ..validation import MAX_DURATION_S, check_choice, check_count
@@ -42,7 +43,7 @@ from .profiles import (
 from .stepping import Observer, Pacer, Trace, ViewerObserver, advance, hold_steps, measured_radians
 
 if TYPE_CHECKING:
-    from ..kinematics import TipPose
+    from ..kinematics import Kinematics, TipPose
 
 log = logging.getLogger(__name__)
 
@@ -215,6 +216,7 @@ class Simulation:
         """Joint name -> (lower, upper) in the arm's units."""
         return self.units.limits_dict()
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def set_pose(self, pose: Pose, *, clip: bool = False) -> None:
         """Place the arm at ``pose`` at rest (velocities zero) and command it to stay there."""
         values = self.units.pose_to_array(pose, clip=clip)
@@ -258,6 +260,7 @@ class Simulation:
         self.data.ctrl[self.index.actuator] = q
         self._state.commanded = True
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def reset(self) -> None:
         """Back to time 0 at the initial pose."""
         with self.lock:
@@ -296,6 +299,7 @@ class Simulation:
         return obs
 
     # -- stepping
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def advance(
         self,
         targets: np.ndarray,
@@ -319,6 +323,7 @@ class Simulation:
             obs = self._observers(viewer, observers)
             return advance(self.model, self.data, q, obs, phase, keep_trace=keep_trace)
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def step(
         self,
         n: int = 1,
@@ -347,6 +352,7 @@ class Simulation:
             keep_trace=_keep(trace, n),
         )
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def plan_move(
         self,
         target: Pose,
@@ -371,6 +377,7 @@ class Simulation:
         start = self.commanded_array()
         return start, plan(start, goal, n, self.timestep, prof)
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def move_to(
         self,
         target: Pose | None = None,
@@ -415,6 +422,7 @@ class Simulation:
                 start, targets = self.plan_move(target, duration, profile=profile, clip=clip)
             return self._segment("move", phase, start, targets, viewer, observers, trace)
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def plan_tip_move(
         self,
         tip: Sequence[float],
@@ -434,6 +442,7 @@ class Simulation:
         """
         from ..kinematics import plan_line, solve_ik  # imported here: only tip moves need it
 
+        _ = self.kinematics  # held here, so that the planner's calls share it
         check_choice(path, "path", ("line", "joint"))
         n = steps_for(_required(duration), self.timestep, maximum=MAX_MOVE_DURATION_S)
         start = self.commanded_array()
@@ -446,13 +455,25 @@ class Simulation:
         )
         return start, line.targets
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def tip(self) -> TipPose:
         """Where the gripper's tip is now (measured): position in metres in the base frame and
         orientation (:class:`~so101sim.kinematics.TipPose`)."""
-        from ..kinematics import for_model  # imported here: only tip queries need it
+        return self.kinematics.tip_array(self.pose_array())
 
-        return for_model(self.model).tip_array(self.pose_array())
+    @property
+    def kinematics(self) -> Kinematics:
+        """The model's shared :class:`~so101sim.kinematics.Kinematics`, made on first use and
+        held by this simulation (the table of :func:`~so101sim.kinematics.for_model` holds
+        none: it would keep the model alive)."""
+        kin = self.__dict__.get("_kinematics")
+        if kin is None:
+            from ..kinematics import for_model  # imported here: only tip queries need it
 
+            kin = self.__dict__["_kinematics"] = for_model(self.model)
+        return kin
+
+    @gated  # no MuJoCo call left running at exit (exitgate)
     def hold(
         self,
         duration: float,

@@ -30,6 +30,7 @@ import numpy as np
 from mujoco import rollout as _rollout
 
 from ..errors import SimulationDivergedError
+from ..exitgate import mujoco_call
 from ..model.load import arm_index
 from ..validation import check_range
 
@@ -309,6 +310,7 @@ def hold_steps(
 
     Raises:
         SimulationDivergedError: as :func:`advance`.
+        ClosedError: the interpreter is exiting (:mod:`so101sim.exitgate`).
     """
     if target is not None:
         d.ctrl[arm_index(m).actuator] = target
@@ -317,11 +319,12 @@ def hold_steps(
     done = 0
     while done < n:
         k = min(n - done, _CHUNK)
-        mujoco.mj_getState(m, d, s0, _STATE_SPEC)
-        t0 = float(s0[0])
-        at_start = t0 < dt
-        warned = _warnings(d) if at_start else 0
-        mujoco.mj_step(m, d, nstep=k)
+        with mujoco_call():  # refused once the interpreter exits (exitgate)
+            mujoco.mj_getState(m, d, s0, _STATE_SPEC)
+            t0 = float(s0[0])
+            at_start = t0 < dt
+            warned = _warnings(d) if at_start else 0
+            mujoco.mj_step(m, d, nstep=k)
         if d.time < t0 + (k - 0.5) * dt or (at_start and _warnings(d) != warned):
             mujoco.mj_setState(m, d, s0, _STATE_SPEC)
             q = d.ctrl[arm_index(m).actuator].copy()
@@ -364,6 +367,7 @@ def advance(
     Raises:
         SimulationDivergedError: MuJoCo reported an unstable state, or the state is not finite;
             ``d`` is left in the last good state.
+        ClosedError: the interpreter is exiting (:mod:`so101sim.exitgate`).
     """
     idx = arm_index(m)
     targets = np.asarray(targets, dtype=float).reshape(-1, len(idx.actuator))
@@ -384,9 +388,10 @@ def advance(
         if k:
             ctrl_full = np.repeat(d.ctrl[None], k, axis=0)
             ctrl_full[:, idx.actuator] = targets[done : done + k]
-            mujoco.mj_getState(m, d, s0, _STATE_SPEC)
-            states = _step_block(m, d, ctrl_full, s0)
-            _check_divergence(m, d, states, s0, qpos_cols)
+            with mujoco_call():  # refused once the interpreter exits (exitgate)
+                mujoco.mj_getState(m, d, s0, _STATE_SPEC)
+                states = _step_block(m, d, ctrl_full, s0)
+                _check_divergence(m, d, states, s0, qpos_cols)
             block = Trace(states[:, 0], targets[done : done + k], states[:, qpos_cols])
             if keep_trace:
                 times[done : done + k] = block.time
