@@ -23,7 +23,7 @@ PACKAGE = Path(so101sim.__file__).parent
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("errors/validation", ("errors", "validation", "gl", "simclock")),
     ("units", ("units",)),
-    ("model", ("model", "modelcache", "modeltrim", "variants")),
+    ("model", ("model", "modelcache", "modeltrim", "variants", "armprofile")),
     ("planning", ("profiles", "trajectory", "kinematics", "kinematics.*")),
     ("simulation", ("simulation", "stepping")),
     ("motion", ("motion", "motionfile", "motionfile_*")),
@@ -43,6 +43,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
             "cameras",
             "scenes.*",
             "cameras",
+            "fidelity",
+            "fidelity.*",
         ),
     ),
     (

@@ -302,6 +302,9 @@ def build_parser() -> argparse.ArgumentParser:
     from .cli_demo import add_demo_command  # so101sim demo (cli_demo.py)
 
     add_demo_command(sub)
+    from .cli_fidelity import add_parsers  # so101sim compare, fit (cli_fidelity.py)
+
+    add_parsers(sub)
     return parser
 
 
