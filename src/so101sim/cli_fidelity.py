@@ -72,6 +72,13 @@ def _common(p: argparse.ArgumentParser) -> None:
         "--calibration",
         help="LeRobot calibration JSON of the follower, for a range-mode (-100..100) dataset",
     )
+    p.add_argument(
+        "--units",
+        choices=["auto", "degrees", "range"],
+        default="auto",
+        help="the dataset's body-joint units: degrees (use_degrees=True) or range (-100..100, "
+        "LeRobot's default); auto: degrees if a value exceeds ±100, else range (default)",
+    )
     p.add_argument("--model", help="MJCF file to load instead of the shipped scene.xml")
 
 
@@ -94,6 +101,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         calibration=args.calibration,
         model=args.model,
         keep_traces=bool(args.plot),
+        units=args.units,
     )
     for w in result.warnings:
         _warn(w)
@@ -137,6 +145,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
         arm=args.arm or "sts3215",
         episodes=episodes,
         calibration=args.calibration,
+        units=args.units,
         holdout=args.holdout,
         max_evaluations=args.iterations,
         threads=args.threads,

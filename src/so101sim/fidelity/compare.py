@@ -111,14 +111,16 @@ def compare(
     calibration: str | Path | None = None,
     model: str | Path | None = None,
     keep_traces: bool = False,
+    units: str = "auto",
 ) -> CompareResult:
     """Replay ``log``'s commands in the sim (profile ``arm``) and measure it against the real
     arm. ``episodes``: which ones (all by default); ``calibration``: LeRobot's calibration JSON
-    for a range-mode dataset. Errors in arm units (degrees; gripper 0–100)."""
+    for a range-mode dataset; ``units``: the dataset's units (``"auto"``, ``"degrees"``,
+    ``"range"``: :func:`~so101sim.fidelity.logs.read_log`). Errors in arm units (degrees; gripper 0–100)."""
     prof = load_profile(arm)
     sim = Simulation(model, arm=prof)
     data = log if isinstance(log, ArmLog) else read_log(
-        log, sim.units, episodes=episodes, calibration=calibration
+        log, sim.units, episodes=episodes, calibration=calibration, units=units
     )  # fmt: skip
     real, simd, cmd, traces, lags = [], [], [], [], []
     for ep in data.episodes:

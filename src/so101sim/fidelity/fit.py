@@ -186,6 +186,7 @@ def fit(
     arm: str | Path | ArmProfile | None = "sts3215",
     episodes: list[int] | None = None,
     calibration: str | Path | None = None,
+    units: str = "auto",
     holdout: int | None = None,
     names: Sequence[str] = FIT_NAMES,
     joints: Sequence[str] = JOINT_NAMES,
@@ -221,7 +222,7 @@ def fit(
     eps: list[Episode] = []
     for item in logs:
         data = item if isinstance(item, ArmLog) else read_log(
-            item, replayer_units, episodes=episodes, calibration=calibration
+            item, replayer_units, episodes=episodes, calibration=calibration, units=units
         )  # fmt: skip
         eps.extend(data.episodes)
     if not eps:

@@ -7,12 +7,15 @@ file under ``data/`` is read (pyarrow) and its rows grouped by ``episode_index``
 ``frame_index``: both layouts read the same way. ``action`` is the command (the leader's
 pose), ``observation.state`` what the follower measured.
 
-Units. A follower run with ``use_degrees=True`` records body joints in degrees (0 in the middle
-of the calibrated range) and the gripper on 0–100: so101sim's own units, read as they are. The
-default (range mode) records body joints on −100..100 of the calibrated range: with LeRobot's
-calibration JSON (``homing_offset``, ``range_min``, ``range_max`` per motor, 4096 ticks a turn)
-they become degrees exactly; without it they are mapped linearly onto the model's joint ranges,
-with a warning (an approximation: the real calibrated range is not the model's).
+Units (``units``). A follower run with ``use_degrees=True`` (so101sim's simulated follower, and
+LeRobot's when asked) records body joints in degrees (0 in the middle of the calibrated range)
+and the gripper on 0–100: so101sim's own units, read as they are (``"degrees"``). LeRobot's
+default (range mode, ``"range"``) records body joints on −100..100 of the calibrated range:
+with LeRobot's calibration JSON (``range_min``, ``range_max`` per motor, 4096 ticks a turn) they
+become degrees exactly; without it they are mapped linearly onto the model's joint ranges, with
+a warning (an approximation: the real calibrated range is not the model's). ``"auto"`` (the
+default): range mode when a calibration is given; degrees when a body joint reads beyond ±100;
+otherwise range mode (LeRobot's default), with a warning saying so.
 """
 
 from __future__ import annotations
@@ -56,7 +59,8 @@ class Episode:
 
 @dataclass(frozen=True)
 class ArmLog:
-    """A recording: its rate, its episodes, where it came from and what was assumed."""
+    """A recording: its rate, its episodes, where it came from and what was assumed
+    (``warnings``: the caller shows them; the CLI prints them on standard error)."""
 
     fps: float
     episodes: list[Episode]
@@ -101,25 +105,32 @@ def parse_episodes(text: str, *, limit: int = MAX_EPISODES) -> list[int]:
 
 def read_log(
     path: str | Path,
-    units: ArmUnits,
+    arm_units: ArmUnits,
     *,
     episodes: list[int] | None = None,
     calibration: str | Path | None = None,
+    units: str = "auto",
 ) -> ArmLog:
     """The recording at ``path`` (a LeRobot dataset folder, or a so101sim CSV log) in the arm's
-    units, its ``episodes`` (all by default). ``units`` are the model's (for range-mode data
-    without a calibration).
+    units, its ``episodes`` (all by default). ``arm_units`` are the model's (for range-mode
+    data without a calibration); ``units``: ``"auto"``, ``"degrees"`` or ``"range"`` (above).
 
     Raises:
         LogError: the path is neither, or lacks what is needed.
         MissingDependencyError: pyarrow is needed and missing.
     """
     p = Path(path).expanduser()
+    if units not in ("auto", "degrees", "range"):
+        raise LogError(f"units = {units!r} is invalid; expected auto, degrees or range")
+    if units == "degrees" and calibration is not None:
+        raise LogError("--calibration converts range-mode data; degrees need none")
     if p.is_dir():
-        return _read_lerobot(p, units, episodes, calibration)
+        return _read_lerobot(p, arm_units, episodes, calibration, units)
     if p.is_file() and p.suffix.lower() == ".csv":
         if calibration is not None:
             raise LogError("--calibration applies to LeRobot datasets; a CSV log is in arm units")
+        if units == "range":
+            raise LogError("a so101sim CSV log is in degrees; units = range does not apply")
         return _read_csv(p, episodes)
     raise LogError(
         f"log {str(p)!r} is neither a LeRobot dataset folder (meta/info.json and data/*.parquet) "
@@ -145,7 +156,11 @@ def _joint_order(names: object, what: str) -> list[int]:
 
 
 def _read_lerobot(
-    root: Path, units: ArmUnits, episodes: list[int] | None, calibration: str | Path | None
+    root: Path,
+    units: ArmUnits,
+    episodes: list[int] | None,
+    calibration: str | Path | None,
+    mode: str,
 ) -> ArmLog:
     info_path = root / "meta" / "info.json"
     try:
@@ -198,7 +213,7 @@ def _read_lerobot(
     fr = np.concatenate(parts["frame_index"]).astype(int)
     ts = np.concatenate(parts["timestamp"]) if parts["timestamp"] else fr / float(fps)
     warnings: list[str] = []
-    act, obs = _to_arm_units(act, obs, info, units, calibration, warnings)
+    act, obs = _to_arm_units(act, obs, mode, units, calibration, warnings)
     available = sorted(set(ep.tolist()))
     chosen = _choose(available, episodes, str(root))
     out = []
@@ -241,27 +256,34 @@ def _ranges(values: list[int]) -> str:
     return ",".join(out)
 
 
-def _is_degrees(act: np.ndarray, obs: np.ndarray, info: dict) -> bool:
-    """Whether body joints are in degrees (``use_degrees``) or −100..100 (range mode)."""
-    body = np.abs(np.concatenate([act[:, :5], obs[:, :5]]))
-    return bool(body.max(initial=0.0) > 100.0 + 1e-6)
-
-
 def _to_arm_units(
     act: np.ndarray,
     obs: np.ndarray,
-    info: dict,
+    mode: str,
     units: ArmUnits,
     calibration: str | Path | None,
     warnings: list[str],
 ) -> tuple[np.ndarray, np.ndarray]:
+    body = np.abs(np.concatenate([act[:, :5], obs[:, :5]]))
+    beyond = bool(body.max(initial=0.0) > 100.0 + 1e-6)
+    if mode == "range" and beyond:
+        raise LogError(
+            "units = range, but a body joint reads beyond ±100; expected range-mode data "
+            "(-100..100), or units = degrees"
+        )
+    if mode == "degrees" or (mode == "auto" and calibration is None and beyond):
+        return act, obs
+    if mode == "auto" and calibration is None:
+        msg = (
+            "every body joint reads within ±100: taken as LeRobot's range mode (-100..100); "
+            "if the follower recorded degrees (use_degrees=True) give --units degrees"
+        )
+        warnings.append(msg)
     if calibration is not None:
         scale = _calibration_scale(Path(calibration).expanduser())
         act, obs = act.copy(), obs.copy()
         act[:, :5] *= scale
         obs[:, :5] *= scale
-        return act, obs
-    if _is_degrees(act, obs, info):
         return act, obs
     lo, hi = units.limits
     span = (hi - lo)[:5] / 200.0
@@ -271,7 +293,6 @@ def _to_arm_units(
         "mapped linearly onto the model's joint ranges (approximate; give LeRobot's "
         "calibration JSON for exact degrees)"
     )
-    log.warning(msg)
     warnings.append(msg)
     act, obs = act.copy(), obs.copy()
     act[:, :5] = mid + act[:, :5] * span
