@@ -116,7 +116,8 @@ def compare(
     """Replay ``log``'s commands in the sim (profile ``arm``) and measure it against the real
     arm. ``episodes``: which ones (all by default); ``calibration``: LeRobot's calibration JSON
     for a range-mode dataset; ``units``: the dataset's units (``"auto"``, ``"degrees"``,
-    ``"range"``: :func:`~so101sim.fidelity.logs.read_log`). Errors in arm units (degrees; gripper 0–100)."""
+    ``"range"``: :func:`~so101sim.fidelity.logs.read_log`). Errors in arm units (degrees;
+    gripper 0–100)."""
     prof = load_profile(arm)
     sim = Simulation(model, arm=prof)
     data = log if isinstance(log, ArmLog) else read_log(
