@@ -23,12 +23,12 @@ AMPLITUDES = np.array([30.0, 40.0, 40.0, 30.0, 40.0, 30.0])
 
 def true_arm() -> ArmProfile:
     """The hidden arm: the sts3215 profile with a stiffer, less damped shoulder, a softer elbow
-    and a longer delay (50 ms)."""
+    and a longer delay (47 ms)."""
     start = load_profile("sts3215")
     joints = {k: dict(v) for k, v in start.joints.items()}
     joints["shoulder_lift"] = {"kp_per_p": 1.4, "damping": 0.8}
     joints["elbow_flex"] = {"kp_per_p": 0.8}
-    return replace(start, name="true", servo=replace(start.servo, delay_s=0.05), joints=joints)
+    return replace(start, name="true", servo=replace(start.servo, delay_s=0.047), joints=joints)
 
 
 def commands(seed: int, seconds: float = 3.0, fps: float = FPS) -> tuple[np.ndarray, np.ndarray]:

@@ -1,4 +1,4 @@
-"""``so101sim fit``: a hidden "true" arm (perturbed servos, a 50 ms delay) writes recordings; the
+"""``so101sim fit``: a hidden "true" arm (perturbed servos, a 47 ms delay) writes recordings; the
 fit recovers its parameters and predicts a held-out motion within 0.5°."""
 
 from __future__ import annotations
@@ -38,9 +38,9 @@ def test_fit_recovers_the_hidden_arm_and_predicts_held_out_motion(episodes):
         want = true.joint(joint, scaled=False)
         for name in ("kp_per_p", "damping"):
             got = res.values[joint][name]
-            assert got == pytest.approx(getattr(want, name), rel=0.05), (joint, name)
+            assert got == pytest.approx(getattr(want, name), rel=0.08), (joint, name)
             assert 0 < res.stderr[joint][name] < 0.1 * got
-    assert res.values["*"]["delay_s"] == pytest.approx(0.05, abs=0.004)
+    assert res.values["*"]["delay_s"] == pytest.approx(0.047, abs=0.003)
     assert res.heldout_error is not None and res.start_heldout_error is not None
     for name in JOINT_NAMES:
         assert res.heldout_error[name] < 0.5  # degrees (gripper units)

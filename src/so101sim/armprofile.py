@@ -17,6 +17,8 @@ a goal position written every control tick), in MuJoCo's own terms:
   load hold the joint; a servo with its torque off swings freer);
 * ``delay_s``: the time from a goal written on the bus to the motor acting on it (and the
   position read back), MuJoCo 4's actuator ``delay`` with a history of ``nsample`` samples;
+* ``max_velocity``: the fastest the firmware moves its internal goal toward the written one
+  (rad/s; 0: it jumps), MuJoCo 4's PID actuator with ``slewmax`` (kp only, no I or D);
 * ``smoothing_s``: the firmware's goal smoothing, as a first-order filter of that time
   constant on the delayed goal (MuJoCo's ``<position timeconst>``: ``filterexact`` dynamics);
 * ``offset``: a calibration offset (rad) per joint: the servo holds ``goal - offset``;
@@ -88,6 +90,7 @@ _BOUNDS: dict[str, tuple[float, float, str]] = {
     "armature": (0.0, 1.0, " kg·m²"),
     "delay_s": (0.0, 0.5, " s"),
     "smoothing_s": (0.0, 0.5, " s"),
+    "max_velocity": (0.0, 1000.0, " rad/s"),
     "offset": (-0.2, 0.2, " rad"),
     "torque_scale": (0.0, 1.0, ""),
 }
@@ -113,6 +116,7 @@ class ServoParams:
     armature: float = 0.0
     delay_s: float = 0.0
     smoothing_s: float = 0.0
+    max_velocity: float = 0.0
     offset: float = 0.0
     torque_scale: float = 1.0
 
@@ -345,6 +349,15 @@ def apply_servo(
     j.frictionloss = params.joint_frictionloss
     j.armature = params.armature
     kp = params.kp
+    if params.max_velocity > 0:  # a slew-limited goal: MuJoCo 4's PID actuator, P only
+        if params.smoothing_s > 0:
+            raise ProfileError("smoothing_s and max_velocity cannot be combined; expected one")
+        actuator.set_to_pid(kp, 0.0, -1, -1, -1, params.max_velocity, 0, 1)  # position input only
+        actuator.biasprm = np.r_[-kp * params.offset, -kp, -params.kv, np.zeros(7)]
+        actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        actuator.forcerange = np.array([-params.force_limit, params.force_limit])
+        _set_delay(actuator, params, timestep)
+        return
     if params.smoothing_s > 0:  # the goal through a first-order filter (<position timeconst>)
         actuator.dyntype = mujoco.mjtDyn.mjDYN_FILTEREXACT
         actuator.dynprm = np.r_[params.smoothing_s, np.zeros(9)]
@@ -356,6 +369,10 @@ def apply_servo(
     actuator.biasprm = np.r_[-kp * params.offset, -kp, -params.kv, np.zeros(7)]
     actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
     actuator.forcerange = np.array([-params.force_limit, params.force_limit])
+    _set_delay(actuator, params, timestep)
+
+
+def _set_delay(actuator: Any, params: ServoParams, timestep: float) -> None:
     if params.delay_s > 0:
         actuator.delay = params.delay_s
         actuator.nsample = delay_samples(params.delay_s, timestep)
@@ -384,7 +401,8 @@ def fill_delay_history(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     of a fresh history)."""
     for a in range(model.nu):
         adr = int(model.actuator_actadr[a])
-        if adr >= 0 and model.actuator_dyntype[a] == mujoco.mjtDyn.mjDYN_FILTEREXACT:
+        dyn = model.actuator_dyntype[a]
+        if adr >= 0 and dyn in (mujoco.mjtDyn.mjDYN_FILTEREXACT, mujoco.mjtDyn.mjDYN_PID):
             data.act[adr] = data.ctrl[a]
     if not model.nhistory:
         return
@@ -412,7 +430,15 @@ def write_servo(model: mujoco.MjModel, actuator: int, dof: int, params: ServoPar
             f"({reach:.4f} s); expected a model compiled with a longer delay"
         )
     kp = params.kp
-    model.actuator_gainprm[actuator, 0] = kp
+    pid = model.actuator_dyntype[actuator] == mujoco.mjtDyn.mjDYN_PID
+    if pid != (params.max_velocity > 0):
+        raise ProfileError(
+            "max_velocity > 0 needs a model compiled with a slew-limited goal (and 0 one "
+            "without); expected the profile's max_velocity when the model was made"
+        )
+    if pid:
+        model.actuator_dynprm[actuator, 1] = params.max_velocity
+    model.actuator_gainprm[actuator, 0] = 0.0 if pid else kp
     model.actuator_biasprm[actuator, :3] = [-kp * params.offset, -kp, -params.kv]
     model.actuator_forcerange[actuator] = [-params.force_limit, params.force_limit]
     model.actuator_delay[actuator] = params.delay_s

@@ -82,6 +82,7 @@ class BenchBatch:
         *,
         max_delay_s: float | None = None,
         timestep: float = TIMESTEP,
+        slew: bool = False,
     ) -> None:
         check_count(len(rigs), "number of bench rigs", minimum=1, maximum=MAX_PENDULUMS)
         self.rigs = [r.checked() for r in rigs]
@@ -92,6 +93,7 @@ class BenchBatch:
         spec.option.gravity = [0.0, 0.0, -9.81]
         spec.modelname = "servo_bench"
         servos = [bench_servo(self.profile, r.firmware_kp) for r in self.rigs]
+        self.slew = slew or any(s.max_velocity > 0 for s in servos)
         hist = max_delay_s if max_delay_s is not None else max(s.delay_s for s in servos)
         hist = check_range(hist, "max_delay_s", low=0.0, high=0.5, unit=" s")
         for i, rig in enumerate(self.rigs):
@@ -108,8 +110,9 @@ class BenchBatch:
             body.add_joint(name=f"servo{i}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 1, 0])
             act = spec.add_actuator(name=f"servo{i}", target=f"servo{i}")
             act.trntype = mujoco.mjtTrn.mjTRN_JOINT
-            delayed = replace(servos[i], delay_s=max(hist, servos[i].delay_s),
-                              smoothing_s=max(servos[i].smoothing_s, 1e-3))  # fmt: skip
+            delayed = replace(servos[i], delay_s=max(hist, servos[i].delay_s))
+            if self.slew:  # every pendulum slew-limited (a huge limit: none), to refit it
+                delayed = replace(delayed, max_velocity=delayed.max_velocity or 1e3)
             apply_servo(spec, f"servo{i}", act, delayed, self.timestep)
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
@@ -132,7 +135,7 @@ class BenchBatch:
                 )
         self.servos = list(servos)
         kp = np.array([s.kp for s in servos])
-        self._gain = kp
+        self._gain = np.zeros_like(kp) if self.slew else kp
         self._bias = np.stack(
             [-kp * np.array([s.offset for s in servos]), -kp, -np.array([s.kv for s in servos])],
             axis=1,
@@ -145,8 +148,8 @@ class BenchBatch:
         m.actuator_forcerange[:, 1] = [s.force_limit for s in servos]
         m.dof_armature[:] = [s.armature for s in servos]
         m.actuator_delay[:] = [s.delay_s for s in servos]
-        # a filter of 0.1 ms at a 2.5 ms step passes the goal through within the step
-        m.actuator_dynprm[:, 0] = [max(s.smoothing_s, 1e-4) for s in servos]
+        if self.slew:
+            m.actuator_dynprm[:, 1] = [s.max_velocity or 1e3 for s in servos]
         self._set_enabled(np.ones(self.size, dtype=bool))
 
     def _set_enabled(self, on: np.ndarray) -> None:

@@ -72,6 +72,7 @@ FIT_PARAMS: tuple[str, ...] = (
     "drive_frictionloss",
     "armature",
     "delay_s",
+    "max_velocity",
 )
 """The servo fields the bench fit identifies. Back-EMF (``damping``) and viscous friction are
 told apart, as are the mechanical and the drive's Coulomb friction, by the runs where the servo
@@ -79,10 +80,10 @@ lets go (lift-and-drop's free fall from about 2 s)."""
 
 _LOW = {"kp_per_p": 0.05, "torque_limit": 0.2, "damping": 0.0, "viscous": 0.0,
         "frictionloss": 0.0, "drive_frictionloss": 0.0, "armature": 0.001, "delay_s": 0.0,
-        "smoothing_s": 0.0}  # fmt: skip
+        "smoothing_s": 0.0, "max_velocity": 1.0}  # fmt: skip
 _HIGH = {"kp_per_p": 20.0, "torque_limit": 10.0, "damping": 10.0, "viscous": 5.0,
          "frictionloss": 2.0, "drive_frictionloss": 2.0, "armature": 0.2, "delay_s": 0.1,
-         "smoothing_s": 0.1}  # fmt: skip
+         "smoothing_s": 0.1, "max_velocity": 30.0}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -115,7 +116,8 @@ def fit_bench(
     optimize = need("scipy.optimize", "scipy")
     prof = load_profile(start)
     base = bench_servo(prof, 16.0)
-    batch = BenchBatch(rigs_of(runs), prof, max_delay_s=_HIGH["delay_s"])
+    slew = "max_velocity" in names or base.max_velocity > 0
+    batch = BenchBatch(rigs_of(runs), prof, max_delay_s=_HIGH["delay_s"], slew=slew)
     period, goals, init, en = _stack(runs)
     lengths = np.array([len(r.t) for r in runs])
     mask = np.zeros(goals.shape, dtype=bool)

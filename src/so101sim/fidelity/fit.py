@@ -241,6 +241,7 @@ def fit(
     lo = np.array([_BOUNDS[n][0] for _, n in keys]) / scale
     hi = np.array([_BOUNDS[n][1] for _, n in keys]) / scale
     z0 = np.clip(x0 / scale, lo + 1e-9, hi - 1e-9)
+    z_start = z0.copy()
     prior_sd = np.array([_PRIOR_SD.get(n, 0.5 * abs(v) + 1e-3) for v, (_, n) in
                          zip(x0, keys, strict=True)]) / scale  # fmt: skip
     n_res = real.size
@@ -261,7 +262,7 @@ def fit(
         out = []
         for z, p in zip(zs, preds, strict=True):
             r = ((p - real) * data_w).ravel()
-            out.append(np.concatenate([r, (z - z0) / prior_sd * prior_w]))
+            out.append(np.concatenate([r, (z - z_start) / prior_sd * prior_w]))
         if progress is not None:
             progress(calls[0], float(np.mean(np.abs(preds[0] - real))))
         return out
@@ -288,7 +289,18 @@ def fit(
                                                                          strict=True))]  # fmt: skip
         return np.stack(cols, axis=1)
 
-    start_pred = rep.replay([servos_of(z0)])[0]
+    start_pred = rep.replay([servos_of(z_start)])[0]
+    if fit_delay:  # the delay first, on a grid, all in one batch: a good start for the solver
+        grid = np.arange(0.0, MAX_DELAY_S + 1e-9, 0.005)
+        zs = []
+        for dl in grid:
+            z = z0.copy()
+            z[-1] = np.clip(dl / scale[-1], lo[-1], hi[-1])
+            zs.append(z)
+        preds = rep.replay([servos_of(z) for z in zs])
+        calls[0] += len(zs)
+        errs = [float(np.mean(np.abs(p - real))) for p in preds]
+        z0 = zs[int(np.argmin(errs))]
     sol = optimize.least_squares(
         fun, z0, jac=jac, bounds=(lo, hi), x_scale="jac", loss="soft_l1",
         f_scale=0.5 * data_w, max_nfev=max_evaluations,
@@ -309,7 +321,7 @@ def fit(
     if held_eps:
         hold = ArmReplayer(held_eps, start, model_path=model, threads=threads)
         hreal = np.concatenate([e.measured for e in held_eps])
-        hp = hold.replay([servos_of(sol.x), servos_of(z0)])
+        hp = hold.replay([servos_of(sol.x), servos_of(z_start)])
         held_err, start_held = _mae(hp[0], hreal), _mae(hp[1], hreal)
     return FitResult(
         profile=replace(best, name=f"{start.name}-fit", source=""),
