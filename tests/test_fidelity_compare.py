@@ -137,3 +137,16 @@ def test_bad_inputs_say_what_is_wrong(tmp_path, capsys):
             parse_episodes(bad)
     assert main(["compare", str(tmp_path / "nothing")]) == 2
     assert "neither a LeRobot dataset" in capsys.readouterr().err
+
+
+def test_a_missing_optional_package_says_what_to_install(tmp_path, episodes, monkeypatch):
+    import sys
+
+    from so101sim.fidelity.deps import MissingDependencyError
+
+    root = write_lerobot(tmp_path / "ds", episodes)
+    monkeypatch.setitem(sys.modules, "pyarrow.parquet", None)  # import fails as if absent
+    with pytest.raises(MissingDependencyError, match=r"so101sim\[fidelity\]"):
+        read_log(root, default_units(), units="degrees")
+    # a CSV log needs no optional package
+    assert compare(write_csv(tmp_path / "e.csv", episodes[0])).frames == len(episodes[0].times)

@@ -395,14 +395,18 @@ def apply_profile(spec: mujoco.MjSpec, profile: str | Path | ArmProfile | None) 
     return prof
 
 
+_GOAL_STATE_DYN = (int(mujoco.mjtDyn.mjDYN_FILTEREXACT), int(mujoco.mjtDyn.mjDYN_PID))
+"""Actuator dynamics whose state is the goal the servo acts on (filtered or slew-limited)."""
+
+
 def fill_delay_history(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     """Fill every delayed actuator's history (and a smoothed one's filter state) with its
     current ``data.ctrl``, so that a pose set now is commanded from the start (not the zeros
     of a fresh history)."""
     for a in range(model.nu):
         adr = int(model.actuator_actadr[a])
-        dyn = model.actuator_dyntype[a]
-        if adr >= 0 and dyn in (mujoco.mjtDyn.mjDYN_FILTEREXACT, mujoco.mjtDyn.mjDYN_PID):
+        dyn = int(model.actuator_dyntype[a])
+        if adr >= 0 and dyn in _GOAL_STATE_DYN:
             data.act[adr] = data.ctrl[a]
     if not model.nhistory:
         return
@@ -430,7 +434,7 @@ def write_servo(model: mujoco.MjModel, actuator: int, dof: int, params: ServoPar
             f"({reach:.4f} s); expected a model compiled with a longer delay"
         )
     kp = params.kp
-    pid = model.actuator_dyntype[actuator] == mujoco.mjtDyn.mjDYN_PID
+    pid = int(model.actuator_dyntype[actuator]) == int(mujoco.mjtDyn.mjDYN_PID)
     if pid != (params.max_velocity > 0):
         raise ProfileError(
             "max_velocity > 0 needs a model compiled with a slew-limited goal (and 0 one "
@@ -443,7 +447,7 @@ def write_servo(model: mujoco.MjModel, actuator: int, dof: int, params: ServoPar
     model.actuator_forcerange[actuator] = [-params.force_limit, params.force_limit]
     model.actuator_delay[actuator] = params.delay_s
     if params.smoothing_s > 0:
-        if model.actuator_dyntype[actuator] != mujoco.mjtDyn.mjDYN_FILTEREXACT:
+        if int(model.actuator_dyntype[actuator]) != int(mujoco.mjtDyn.mjDYN_FILTEREXACT):
             raise ProfileError(
                 "smoothing_s > 0 needs a model compiled with smoothing; expected the profile's "
                 "smoothing when the model was made"
