@@ -69,7 +69,7 @@ def test_the_true_profile_predicts_its_own_recording(tmp_path, episodes, true_to
 def test_range_mode_with_and_without_calibration(tmp_path, episodes, capsys):
     lo_t = np.array([1000, 800, 900, 850, 100, 2000])
     hi_t = np.array([3000, 3200, 3100, 3050, 3900, 3400])
-    deg_per_unit = (hi_t - lo_t)[:5] / 200 * 360 / 4096
+    deg_per_unit = (hi_t - lo_t)[:5] / 200 * 360 / 4095
 
     def to_range(v):
         out = np.array(v, dtype=float)

@@ -11,11 +11,11 @@ Units (``units``). A follower run with ``use_degrees=True`` (so101sim's simulate
 LeRobot's when asked) records body joints in degrees (0 in the middle of the calibrated range)
 and the gripper on 0–100: so101sim's own units, read as they are (``"degrees"``). LeRobot's
 default (range mode, ``"range"``) records body joints on −100..100 of the calibrated range:
-with LeRobot's calibration JSON (``range_min``, ``range_max`` per motor, 4096 ticks a turn) they
-become degrees exactly; without it they are mapped linearly onto the model's joint ranges, with
-a warning (an approximation: the real calibrated range is not the model's). ``"auto"`` (the
-default): range mode when a calibration is given; degrees when a body joint reads beyond ±100;
-otherwise range mode (LeRobot's default), with a warning saying so.
+with LeRobot's calibration JSON (``range_min``, ``range_max`` per motor) they become degrees
+exactly as LeRobot computes them; without it they are mapped linearly onto the model's joint
+ranges, with a warning (an approximation: the real calibrated range is not the model's).
+``"auto"`` (the default): range mode when a calibration is given; degrees when a body joint
+reads beyond ±100; otherwise range mode (LeRobot's default), with a warning saying so.
 """
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ __all__ = ["ArmLog", "Episode", "LogError", "parse_episodes", "read_log"]
 MAX_FRAMES = 5_000_000
 MAX_EPISODES = 100_000
 TICKS_PER_TURN = 4096
+DEGREE_TICKS = 4095  # LeRobot's degrees: (ticks - middle) * 360 / 4095
 
 
 class LogError(SettingError):
@@ -202,8 +203,7 @@ def _read_lerobot(
             raise LogError(f"{str(root)!r} holds more than {MAX_FRAMES} frames; too many")
         for c in cols:
             if c in table.column_names:
-                col = table.column(c).to_pylist()
-                parts[c].append(np.asarray(col, dtype=float))
+                parts[c].append(_column(table.column(c), c, f))
     act = np.concatenate(parts["action"])
     obs = np.concatenate(parts["observation.state"])
     if act.ndim != 2 or obs.ndim != 2:
@@ -229,6 +229,24 @@ def _read_lerobot(
         raise LogError(f"{str(root)!r}: no episode with two frames or more among {chosen}")
     kind = "lerobot-v2.1" if version.startswith("v2") else "lerobot-v3.0"
     return ArmLog(float(fps), out, str(root), kind, warnings)
+
+
+def _column(col, name: str, path: Path) -> np.ndarray:
+    """A parquet column as floats: ``(rows,)``, or ``(rows, n)`` for a list column."""
+    import pyarrow as pa
+
+    col = col.combine_chunks() if isinstance(col, pa.ChunkedArray) else col
+    if (
+        pa.types.is_list(col.type)
+        or pa.types.is_fixed_size_list(col.type)
+        or (pa.types.is_large_list(col.type))
+    ):
+        n = len(col)
+        flat = col.flatten().to_numpy(zero_copy_only=False).astype(float)
+        if n and flat.size % n:
+            raise LogError(f"{str(path)!r}: {name} has vectors of different lengths")
+        return flat.reshape(n, -1 if n else 0)
+    return col.to_numpy(zero_copy_only=False).astype(float)
 
 
 def _choose(available: list[int], episodes: list[int] | None, where: str) -> list[int]:
@@ -303,8 +321,8 @@ def _to_arm_units(
 def _calibration_scale(path: Path) -> np.ndarray:
     """Degrees per range unit of each body joint from LeRobot's calibration JSON: a range value
     v maps to ticks ``min + (v + 100) / 200 · (max − min)``, and degrees are ticks from the
-    middle of the range times 360/4096 (LeRobot's ``use_degrees``), so ``v · (max − min) / 200
-    · 360 / 4096``."""
+    middle of the range times 360/4095 (LeRobot's ``use_degrees``), so ``v · (max − min) / 200
+    · 360 / 4095``."""
     try:
         cal = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
@@ -329,7 +347,7 @@ def _calibration_scale(path: Path) -> np.ndarray:
                 f"calibration file {str(path)!r}: {name} range {lo}..{hi} is invalid; expected "
                 f"0 <= range_min < range_max <= {TICKS_PER_TURN}"
             )
-        scale[i] = (hi - lo) / 200.0 * 360.0 / TICKS_PER_TURN
+        scale[i] = (hi - lo) / 200.0 * 360.0 / DEGREE_TICKS
     return scale
 
 
