@@ -60,10 +60,11 @@ _BOUNDS = {
     "armature": (1e-4, 0.5),
     "offset": (-0.2, 0.2),
     "delay_s": (0.0, MAX_DELAY_S),
+    "max_velocity": (0.5, 30.0),  # only from a profile with a slew-limited goal
 }
 _TYPICAL = {"kp_per_p": 0.5, "torque_limit": 1.0, "damping": 0.5, "viscous": 0.1,
             "frictionloss": 0.05, "drive_frictionloss": 0.05, "armature": 0.01,
-            "offset": 0.01, "delay_s": 0.01}  # fmt: skip
+            "offset": 0.01, "delay_s": 0.01, "max_velocity": 1.0}  # fmt: skip
 _PRIOR_SD = {"offset": 0.05, "delay_s": 0.05}  # absolute; others: relative (50 %)
 
 
@@ -212,7 +213,7 @@ def fit(
     if bad:
         raise SettingError(
             f"cannot fit {bad[0]!r}; expected servo fields among {', '.join(FIT_NAMES)}, "
-            "viscous, drive_frictionloss"
+            "viscous, drive_frictionloss, max_velocity"
         )
     unknown = [j for j in joints if j not in JOINT_NAMES]
     if unknown:
