@@ -12,35 +12,40 @@ scipy and pyarrow are optional (``pip install 'so101sim[fidelity]'``); what need
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+# Imported eagerly (MuJoCo and NumPy only; scipy and pyarrow stay lazy), so that the functions
+# ``compare`` and ``fit`` are what ``so101sim.fidelity.compare``/``.fit`` name, not the modules of
+# the same name.
+from .bam import BamM1, load_m1, simulate_m1
+from .bench import BenchBatch, BenchRig, ServoBench
+from .benchdata import BenchRun, load_bench_runs, split_runs
+from .benchfit import BenchFit, fit_bench, per_run_errors, simulate_runs, summarize
+from .compare import CompareResult, compare
+from .deps import MissingDependencyError
+from .fit import FitResult, fit
+from .logs import ArmLog, Episode, LogError, read_log
 
-_LAZY = {
-    "ServoBench": "bench",
-    "BenchBatch": "bench",
-    "BenchRun": "benchdata",
-    "load_bench_runs": "benchdata",
-    "split_runs": "benchdata",
-    "simulate_runs": "benchfit",
-    "fit_bench": "benchfit",
-    "compare": "compare",
-    "CompareResult": "compare",
-    "read_log": "logs",
-    "ArmLog": "logs",
-    "fit": "fit",
-    "FitResult": "fit",
-    "MissingDependencyError": "deps",
-}
-
-__all__ = sorted(_LAZY)
-
-
-def __getattr__(name: str) -> Any:
-    mod = _LAZY.get(name)
-    if mod is None:
-        raise AttributeError(f"module 'so101sim.fidelity' has no attribute {name!r}")
-    return getattr(importlib.import_module(f".{mod}", __name__), name)
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__all__ = [
+    "ArmLog",
+    "BamM1",
+    "BenchBatch",
+    "BenchFit",
+    "BenchRig",
+    "BenchRun",
+    "CompareResult",
+    "Episode",
+    "FitResult",
+    "LogError",
+    "MissingDependencyError",
+    "ServoBench",
+    "compare",
+    "fit",
+    "fit_bench",
+    "load_bench_runs",
+    "load_m1",
+    "per_run_errors",
+    "read_log",
+    "simulate_m1",
+    "simulate_runs",
+    "split_runs",
+    "summarize",
+]
