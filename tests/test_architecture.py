@@ -27,14 +27,23 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("kinematics", ("kinematics",)),
     ("sim", ("sim",)),
     ("motion", ("motion",)),
-    ("outputs", ("recording", "viewer", "preflight", "scenes")),
+    ("outputs", ("recording", "viewer", "preflight", "scenes", "fidelity")),
     ("apps", ("lab", "robot", "envs")),
     ("cli", ("cli", "__main__")),
 ]
 
 # The only modules allowed at the top of the package: everything else lives in a subpackage of
 # its layer (a new flat module, or a family of them, fails test_no_flat_modules).
-TOP_LEVEL_MODULES = {"errors", "validation", "units", "gl", "exitgate", "_compat", "_lazy", "__main__"}
+TOP_LEVEL_MODULES = {
+    "errors",
+    "validation",
+    "units",
+    "gl",
+    "exitgate",
+    "_compat",
+    "_lazy",
+    "__main__",
+}
 
 
 def _modules() -> dict[str, Path]:

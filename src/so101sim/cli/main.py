@@ -132,6 +132,9 @@ def build_parser() -> argparse.ArgumentParser:
     from .demo import add_demo_command  # so101sim demo
 
     add_demo_command(sub)
+    from .fidelity import add_parsers as add_fidelity_commands  # so101sim compare, fit
+
+    add_fidelity_commands(sub)
     return parser
 
 

@@ -38,7 +38,9 @@ def scene_path() -> Path:
     return model_dir() / "scene.xml"
 
 
-def load_model(path: str | Path | None = None, *, physics_only: bool = False) -> mujoco.MjModel:
+def load_model(
+    path: str | Path | None = None, *, physics_only: bool = False, arm: object = None
+) -> mujoco.MjModel:
     """Compile an MJCF model, once per process and path (and once per content across
     processes: the compiled model is cached on disk, see :mod:`so101sim.model.cache`).
 
@@ -54,10 +56,18 @@ def load_model(path: str | Path | None = None, *, physics_only: bool = False) ->
     what is dropped: flexes, signed-distance fields, plugins, rangefinders), this is the full
     model.
 
+    ``arm``: an arm profile (a name such as ``"sts3215"``, a TOML path, or an
+    :class:`~so101sim.model.arm.ArmProfile`) applied to the servos with ``MjSpec`` at load
+    (:mod:`so101sim.model.arm`); None keeps the file's own actuators. A model with a profile
+    is compiled once per process per file and profile, and is always the full model.
+
     Raises:
         ModelError: the file does not exist, does not compile, or lacks the SO-101 joints.
+        ProfileError: ``arm`` names no profile or holds invalid values.
     """
     p = Path(path).expanduser() if path is not None else scene_path()
+    if arm is not None:
+        return _load_with_arm(p, arm)
     if p.exists() and not p.is_file():
         raise ModelError(
             f"model file {str(p)!r} is not a regular file; expected an MJCF file such as the "
@@ -82,6 +92,35 @@ def load_model(path: str | Path | None = None, *, physics_only: bool = False) ->
             arm_index(model)  # fail now, not at the first command, if joints are missing
             _cache[key] = model
             log.debug("compiled %s (nq=%d, nu=%d)", p, model.nq, model.nu)
+    return model
+
+
+_arm_cache: dict[tuple[str, int, str], mujoco.MjModel] = {}
+
+
+def _load_with_arm(p: Path, arm: object) -> mujoco.MjModel:
+    from .arm import apply_profile, load_profile, profile_toml
+
+    if not p.is_file():
+        raise ModelError(
+            f"model file {str(p)!r} does not exist; expected an MJCF file such as the shipped "
+            f"{str(scene_path())!r}"
+        )
+    p = p.resolve()
+    prof = load_profile(arm)  # type: ignore[arg-type]
+    key = (str(p), p.stat().st_mtime_ns, profile_toml(prof))
+    with _lock:
+        model = _arm_cache.get(key)
+        if model is None:
+            try:
+                spec = mujoco.MjSpec.from_file(str(p))
+                apply_profile(spec, prof)
+                model = spec.compile()
+            except (ValueError, mujoco.FatalError) as exc:
+                raise ModelError(f"model file {str(p)!r} does not compile: {exc}") from exc
+            arm_index(model)
+            _arm_cache[key] = model
+            log.debug("compiled %s with arm profile %s", p, prof.name)
     return model
 
 

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..errors import DurationError, ModelError, SettingError
 from ..exitgate import gated
+from ..model.arm import fill_delay_history
 from ..model.load import ArmIndex, arm_index, arm_units, load_model
 from ..units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose, unit_warnings
 from ..validation import MAX_DURATION_S, check_choice, check_count
@@ -127,6 +128,9 @@ class Simulation:
 
     ``data`` (optional) is an existing ``MjData`` of ``model`` to drive instead of a new one;
     :meth:`attach` is the way for handout-style code that holds a bare ``(model, data)``.
+
+    ``arm`` (optional): an arm profile (``"official"``, ``"sts3215"``, a TOML path) applied to
+    the servos at load (:mod:`so101sim.model.arm`); None keeps the model file's actuators.
     """
 
     def __init__(
@@ -135,9 +139,15 @@ class Simulation:
         *,
         data: mujoco.MjData | None = None,
         initial_pose: Pose | None = STARTING_POSE,
+        arm: Any = None,
     ) -> None:
+        if arm is not None and isinstance(model, mujoco.MjModel):
+            raise SettingError(
+                "arm= applies when so101sim loads the model; expected a path (or None) with "
+                "arm=, or a model loaded with load_model(path, arm=...)"
+            )
         self.model: mujoco.MjModel = (
-            model if isinstance(model, mujoco.MjModel) else load_model(model)
+            model if isinstance(model, mujoco.MjModel) else load_model(model, arm=arm)
         )
         if data is not None:
             _check_data(self.model, data)
@@ -226,6 +236,7 @@ class Simulation:
             self.data.qvel[self.index.dof] = 0.0
             self._set_target(q)
             mujoco.mj_forward(self.model, self.data)
+            fill_delay_history(self.model, self.data)
 
     def command(self, pose: Pose, *, clip: bool = False) -> dict[str, float]:
         """Set the position targets; joints left out keep their last target. Returns the full

@@ -1,0 +1,117 @@
+"""How well each actuator model predicts a real STS3215 on the pendulum bench.
+
+    PYTHONPATH=src python bench/bench_fidelity.py PATH [--split validation|fit|all]
+        [--bam-m1 FILE] [--arm NAME|FILE ...] [--fit OUT.toml [--iterations N]]
+
+PATH is the public data set's folder of JSON runs (kscalelabs/sysid at commit 6b78737,
+``data/feetech/STS_3215_12V_20250317/processed/``) or an ``.npz`` of runs (the project's
+shared copy of the fit split). Neither is shipped: the data has no licence.
+
+Of each (mass, length, P, trajectory) condition's two runs the one whose file name sorts first
+is for fitting, the other for validation; ``--split`` picks which are scored (validation by
+default; an .npz of the fit split is scored whole). Printed, side by side: the mean per-run
+absolute position error (rad) of each profile (``official``, the shipped ``sts3215`` fit) and
+of Rhoban's BAM M1 simulated from the data's authors' parameters (``friction_params/m1.json``
+beside ``processed/``, or ``--bam-m1``), overall and per trajectory, and the wall time each
+model took on this machine (a ratio, not a figure to quote alone).
+
+``--fit OUT.toml``: first fit the servo (:data:`so101sim.fidelity.benchfit.FIT_PARAMS`) on the
+FIT runs in PATH, starting from the shipped ``sts3215``, write the profile to OUT.toml (at 12 V
+as measured, driven at 7.4 V like the shipped one) and score it beside the others: how the
+shipped ``sts3215.toml`` was made (``--iterations 40``, every 4th sample).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from so101sim.fidelity.bam import load_m1, simulate_m1
+from so101sim.fidelity.benchdata import load_bench_runs, split_runs
+from so101sim.fidelity.benchfit import per_run_errors, simulate_runs, summarize
+
+
+def fit_profile(runs: list, out: Path, iterations: int) -> Path:
+    """Fit the servo on ``runs`` from the shipped sts3215 and write the profile to ``out``."""
+    from dataclasses import replace
+
+    from so101sim.fidelity.benchfit import fit_bench
+    from so101sim.model.arm import load_profile, profile_toml
+
+    if not runs:
+        raise SystemExit("no FIT runs to fit on")
+    t0 = time.perf_counter()
+    res = fit_bench(runs, "sts3215", every=4, max_evaluations=iterations)
+    start = load_profile("sts3215")
+    prof = replace(start, name="sts3215-refit", servo=replace(res.servo, torque_scale=1.0))
+    errs = ", ".join(f"{k} ±{v:.2g}" for k, v in res.stderr.items())
+    comment = (
+        f"bench/bench_fidelity.py --fit: {len(runs)} FIT runs, {res.evaluations} evaluations, "
+        f"{time.perf_counter() - t0:.0f} s\nfit error {res.fit_error:.4f} rad; standard errors: "
+        f"{errs}"
+    )
+    out.write_text(profile_toml(prof, comment=comment), encoding="utf-8")
+    print(f"fitted {len(runs)} runs: mean per-run error {res.fit_error:.4f} rad; wrote {out}")
+    for k in res.names:
+        print(f"  {k:<20}{getattr(res.servo, k):>10.5g} ± {res.stderr[k]:.2g}")
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("path", type=Path)
+    ap.add_argument("--split", choices=["validation", "fit", "all"], default=None)
+    ap.add_argument("--bam-m1", type=Path, default=None)
+    ap.add_argument("--arm", action="append", default=None, help="profiles (repeatable)")
+    ap.add_argument("--fit", type=Path, default=None, help="fit on the FIT runs, write here")
+    ap.add_argument("--iterations", type=int, default=40, help="solver evaluations (--fit)")
+    args = ap.parse_args()
+
+    runs = load_bench_runs(args.path)
+    split = args.split or ("all" if args.path.suffix == ".npz" else "validation")
+    fit, val = split_runs(runs)
+    chosen = {"validation": val, "fit": fit, "all": runs}[split]
+    if not chosen:
+        raise SystemExit(f"no {split} runs in {args.path}")
+    print(f"{len(chosen)} {split} runs of {len(runs)} in {args.path}")
+
+    arms: list = list(args.arm or ["official", "sts3215"])
+    if args.fit is not None:
+        arms.append(fit_profile(fit, args.fit, args.iterations))
+    columns: dict[str, dict[str, float]] = {}
+    times: dict[str, float] = {}
+    for arm in arms:
+        label = Path(arm).stem if str(arm).endswith(".toml") else str(arm)
+        t0 = time.perf_counter()
+        pred = simulate_runs(chosen, arm)
+        times[label] = time.perf_counter() - t0
+        columns[label] = summarize(chosen, per_run_errors(chosen, pred))
+    m1_path = args.bam_m1 or args.path.parent / "friction_params" / "m1.json"
+    if m1_path.is_file():
+        t0 = time.perf_counter()
+        pred = simulate_m1(chosen, load_m1(m1_path))
+        times["BAM M1"] = time.perf_counter() - t0
+        columns["BAM M1"] = summarize(chosen, per_run_errors(chosen, pred))
+    else:
+        print(f"(no BAM M1 column: {m1_path} not found; give --bam-m1 FILE)")
+
+    counts = {k: sum(r.trajectory == k for r in chosen) for k in columns[next(iter(columns))]}
+    counts["all"] = len(chosen)
+    names = list(columns)
+    print()
+    print("mean per-run |position error|, rad")
+    print(f"{'trajectory':<18}{'runs':>5}" + "".join(f"{n:>14}" for n in names))
+    for row in columns[names[0]]:
+        cells = "".join(f"{columns[n][row]:>14.4f}" for n in names)
+        print(f"{row:<18}{counts[row]:>5}{cells}")
+    print(f"{'wall time, s':<23}" + "".join(f"{times[n]:>14.2f}" for n in names))
+    worst = {n: max(v for k, v in columns[n].items() if k != "all") for n in names}
+    print(f"{'worst trajectory':<23}" + "".join(f"{worst[n]:>14.4f}" for n in names))
+    _ = np  # numpy is the runs' format
+
+
+if __name__ == "__main__":
+    main()

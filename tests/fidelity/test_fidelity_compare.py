@@ -1,0 +1,152 @@
+"""``so101sim compare``: LeRobot datasets (v2.1, v3.0; degrees and range mode) and CSV logs of a
+hidden "true" arm, replayed in the sim, read without lerobot."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pyarrow")
+
+from fidelity_helpers import record, true_arm, write_csv, write_lerobot
+
+from so101sim.cli import main
+from so101sim.errors import CalibrationError
+from so101sim.fidelity.compare import compare
+from so101sim.fidelity.logs import LogError, parse_episodes, read_log
+from so101sim.model import default_units
+from so101sim.model.arm import profile_toml
+from so101sim.units import JOINT_NAMES
+
+
+@pytest.fixture(scope="module")
+def episodes():
+    return record(true_arm(), [1, 2], seconds=2.0)
+
+
+@pytest.fixture(scope="module")
+def true_toml(tmp_path_factory):
+    path = tmp_path_factory.mktemp("arm") / "true.toml"
+    path.write_text(profile_toml(true_arm()))
+    return path
+
+
+@pytest.mark.parametrize("version", ["v3.0", "v2.1"])
+def test_a_dataset_is_read_in_both_layouts(tmp_path, episodes, version):
+    root = write_lerobot(tmp_path / "ds", episodes, version=version)
+    log = read_log(root, default_units(), units="degrees")
+    assert log.kind == f"lerobot-{version}"
+    assert log.fps == 30 and [e.index for e in log.episodes] == [0, 1]
+    for got, want in zip(log.episodes, episodes, strict=True):
+        np.testing.assert_allclose(got.command, want.command, atol=1e-4)
+        np.testing.assert_allclose(got.measured, want.measured, atol=1e-4)
+        np.testing.assert_allclose(got.times, want.times, atol=1e-6)
+    only = read_log(root, default_units(), episodes=[1], units="degrees")
+    assert [e.index for e in only.episodes] == [1]
+    with pytest.raises(LogError, match="has no episode 7; it has 0-1"):
+        read_log(root, default_units(), episodes=[7], units="degrees")
+    with pytest.raises(LogError, match="units = 'kelvin' is invalid"):
+        read_log(root, default_units(), units="kelvin")
+
+
+def test_the_true_profile_predicts_its_own_recording(tmp_path, episodes, true_toml):
+    root = write_lerobot(tmp_path / "ds", episodes)
+    right = compare(root, arm=true_toml, units="degrees")
+    wrong = compare(root, arm="official", units="degrees")
+    assert right.frames == sum(len(e.times) for e in episodes) and right.episodes == [0, 1]
+    for name in JOINT_NAMES:
+        assert right.joints[name].mae < 0.1  # degrees: the same arm, replayed
+        assert abs(right.joints[name].lag_s) <= 1 / 30 + 1e-9
+    # the vendored arm is too stiff and has no delay: it leads the real arm and is further off
+    for name in ("shoulder_lift", "elbow_flex"):
+        assert wrong.joints[name].mae > 5 * right.joints[name].mae
+        assert wrong.joints[name].lag_s > 0.02
+        assert right.joints[name].mae < right.command_baseline[name]
+
+
+def test_range_mode_with_and_without_calibration(tmp_path, episodes, capsys):
+    lo_t = np.array([1000, 800, 900, 850, 100, 2000])
+    hi_t = np.array([3000, 3200, 3100, 3050, 3900, 3400])
+    deg_per_unit = (hi_t - lo_t)[:5] / 200 * 360 / 4095
+
+    def to_range(v):
+        out = np.array(v, dtype=float)
+        out[:5] = out[:5] / deg_per_unit
+        return out
+
+    root = write_lerobot(tmp_path / "ds", episodes, transform=to_range)
+    cal = {n: {"id": i + 1, "drive_mode": 0, "homing_offset": 0, "range_min": int(lo_t[i]),
+               "range_max": int(hi_t[i])} for i, n in enumerate(JOINT_NAMES)}  # fmt: skip
+    cal_path = tmp_path / "follower.json"
+    cal_path.write_text(json.dumps(cal))
+    log = read_log(root, default_units(), calibration=cal_path)
+    assert not log.warnings
+    np.testing.assert_allclose(log.episodes[0].measured, episodes[0].measured, atol=1e-3)
+    guessed = read_log(root, default_units())
+    assert any("--calibration" in w for w in guessed.warnings)
+    assert any("--units degrees" in w for w in guessed.warnings)
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"shoulder_pan": {"range_min": 5}}))
+    with pytest.raises(CalibrationError, match="range_min/range_max"):
+        read_log(root, default_units(), calibration=bad)
+    # the CLI prints the warning on stderr, the JSON alone on stdout
+    assert main(["compare", str(root), "--json", "--episodes", "0"]) == 0
+    out = capsys.readouterr()
+    assert "calibration" in out.err
+    json.loads(out.out)
+
+
+def test_cli_json_is_one_object_on_stdout(tmp_path, episodes, true_toml, capsys):
+    root = write_lerobot(tmp_path / "ds", episodes)
+    plot = tmp_path / "overlay.png"
+    code = main(["compare", str(root), "--arm", str(true_toml), "--episodes", "0-1", "--json",
+                 "--plot", str(plot), "--units", "degrees"])  # fmt: skip
+    assert code == 0
+    out = capsys.readouterr()
+    obj = json.loads(out.out)
+    assert set(obj) == {"frames", "episodes", "joints", "command_baseline"}
+    assert obj["frames"] == 120 and obj["episodes"] == [0, 1]
+    assert set(obj["joints"]) == set(JOINT_NAMES)
+    assert set(obj["joints"]["elbow_flex"]) == {"mae", "rms", "max", "lag_s"}
+    assert set(obj["command_baseline"]["gripper"]) == {"mae"}
+    assert plot.stat().st_size > 10_000 and plot.read_bytes()[:4] == b"\x89PNG"
+    assert main(["compare", str(root), "--units", "degrees"]) == 0
+    text = capsys.readouterr().out
+    assert "command mae" in text and "elbow_flex" in text
+
+
+def test_a_csv_log_is_compared(tmp_path, episodes, true_toml):
+    path = write_csv(tmp_path / "run.csv", episodes[0])
+    res = compare(path, arm=true_toml)
+    assert res.episodes == [0] and res.frames == len(episodes[0].times)
+    assert max(e.mae for e in res.joints.values()) < 0.1
+
+
+def test_bad_inputs_say_what_is_wrong(tmp_path, capsys):
+    with pytest.raises(LogError, match="neither a LeRobot dataset"):
+        read_log(tmp_path / "nothing", default_units())
+    (tmp_path / "ds" / "meta").mkdir(parents=True)
+    (tmp_path / "ds" / "meta" / "info.json").write_text(json.dumps({"fps": 30, "features": {}}))
+    with pytest.raises(LogError, match="no 'action' feature"):
+        read_log(tmp_path / "ds", default_units())
+    assert parse_episodes("0-1,3") == [0, 1, 3]
+    for bad in ("a", "3-1", "-2", "0-99999999"):
+        with pytest.raises(Exception, match="--episodes"):
+            parse_episodes(bad)
+    assert main(["compare", str(tmp_path / "nothing")]) == 2
+    assert "neither a LeRobot dataset" in capsys.readouterr().err
+
+
+def test_a_missing_optional_package_says_what_to_install(tmp_path, episodes, monkeypatch):
+    import sys
+
+    from so101sim.fidelity.deps import MissingDependencyError
+
+    root = write_lerobot(tmp_path / "ds", episodes)
+    monkeypatch.setitem(sys.modules, "pyarrow.parquet", None)  # import fails as if absent
+    with pytest.raises(MissingDependencyError, match=r"so101sim\[fidelity\]"):
+        read_log(root, default_units(), units="degrees")
+    # a CSV log needs no optional package
+    assert compare(write_csv(tmp_path / "e.csv", episodes[0])).frames == len(episodes[0].times)

@@ -1,0 +1,119 @@
+"""Making recordings of a hidden "true" arm for the fidelity tests: commands, the measured
+poses the true arm gives, written as LeRobot datasets (v2.1 and v3.0 layouts, with pyarrow,
+without lerobot) or so101sim CSV logs."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from so101sim.fidelity.compare import replay_episode
+from so101sim.fidelity.logs import Episode
+from so101sim.model.arm import ArmProfile, load_profile
+from so101sim.sim import Simulation
+from so101sim.units import JOINT_NAMES
+
+FPS = 30.0
+CENTRES = np.array([0.0, -40.0, 40.0, 20.0, 0.0, 30.0])
+AMPLITUDES = np.array([30.0, 40.0, 40.0, 30.0, 40.0, 30.0])
+
+
+def true_arm() -> ArmProfile:
+    """The hidden arm: the sts3215 profile with a stiffer, less damped shoulder, a softer elbow
+    and a longer delay (47 ms)."""
+    start = load_profile("sts3215")
+    joints = {k: dict(v) for k, v in start.joints.items()}
+    joints["shoulder_lift"] = {"kp_per_p": 1.4, "damping": 0.8}
+    joints["elbow_flex"] = {"kp_per_p": 0.8}
+    return replace(start, name="true", servo=replace(start.servo, delay_s=0.047), joints=joints)
+
+
+def commands(seed: int, seconds: float = 3.0, fps: float = FPS) -> tuple[np.ndarray, np.ndarray]:
+    """Smooth random commands (arm units) at ``fps``: a sine per joint."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(round(seconds * fps)) / fps
+    f = rng.uniform(0.3, 0.8, 6)
+    ph = rng.uniform(0.0, 6.0, 6)
+    cmd = CENTRES + AMPLITUDES * np.sin(2 * np.pi * f * t[:, None] + ph)
+    return t, cmd
+
+
+def record(arm: ArmProfile, seeds: list[int], seconds: float = 3.0) -> list[Episode]:
+    """Episodes of ``arm`` following :func:`commands` for each seed, from the first command."""
+    sim = Simulation(arm=arm)
+    out = []
+    for i, seed in enumerate(seeds):
+        t, cmd = commands(seed, seconds)
+        meas = replay_episode(sim, Episode(i, t, cmd, np.tile(cmd[0], (len(t), 1))))
+        out.append(Episode(i, t, cmd, meas))
+    return out
+
+
+def write_lerobot(root: Path, episodes: list[Episode], *, version: str = "v3.0",
+                  transform=None) -> Path:  # fmt: skip
+    """A LeRobot dataset of ``episodes`` at ``root`` (``meta/info.json``, parquet data).
+    ``transform(values)`` maps arm units to what is stored (range mode)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    names = [f"{n}.pos" for n in JOINT_NAMES]
+    feats = {
+        "action": {"dtype": "float32", "shape": [6], "names": names},
+        "observation.state": {"dtype": "float32", "shape": [6], "names": names},
+        "timestamp": {"dtype": "float32", "shape": [1], "names": None},
+        "frame_index": {"dtype": "int64", "shape": [1], "names": None},
+        "episode_index": {"dtype": "int64", "shape": [1], "names": None},
+        "index": {"dtype": "int64", "shape": [1], "names": None},
+        "task_index": {"dtype": "int64", "shape": [1], "names": None},
+    }
+    (root / "meta").mkdir(parents=True)
+    info = {"codebase_version": version, "robot_type": "so_follower", "fps": int(FPS),
+            "features": feats}  # fmt: skip
+    (root / "meta" / "info.json").write_text(json.dumps(info))
+    tf = transform or (lambda v: v)
+
+    def table(eps: list[Episode], start: int) -> pa.Table:
+        rows: dict[str, list] = {k: [] for k in feats}
+        index = start
+        for ep in eps:
+            for k in range(len(ep.times)):
+                rows["action"].append(np.float32(tf(ep.command[k])).tolist())
+                rows["observation.state"].append(np.float32(tf(ep.measured[k])).tolist())
+                rows["timestamp"].append(float(np.float32(ep.times[k])))
+                rows["frame_index"].append(k)
+                rows["episode_index"].append(ep.index)
+                rows["index"].append(index)
+                rows["task_index"].append(0)
+                index += 1
+        return pa.table(
+            {k: pa.array(v, type=pa.list_(pa.float32()) if k in ("action", "observation.state")
+                         else (pa.float32() if k == "timestamp" else pa.int64()))
+             for k, v in rows.items()}
+        )  # fmt: skip
+
+    data = root / "data" / "chunk-000"
+    data.mkdir(parents=True)
+    if version.startswith("v3"):
+        pq.write_table(table(episodes, 0), data / "file-000.parquet")
+    else:
+        start = 0
+        for ep in episodes:
+            pq.write_table(table([ep], start), data / f"episode_{ep.index:06d}.parquet")
+            start += len(ep.times)
+    return root
+
+
+def write_csv(path: Path, ep: Episode) -> Path:
+    """A so101sim CSV log of one episode."""
+    cols = ["time", "phase"]
+    cols += [f"{n}_commanded" for n in JOINT_NAMES] + [f"{n}_measured" for n in JOINT_NAMES]
+    lines = [",".join(cols)]
+    for k in range(len(ep.times)):
+        vals = [f"{ep.times[k]:.4f}", "replay"]
+        vals += [f"{v:.6f}" for v in ep.command[k]] + [f"{v:.6f}" for v in ep.measured[k]]
+        lines.append(",".join(vals))
+    path.write_text("\n".join(lines) + "\n")
+    return path
