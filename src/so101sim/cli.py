@@ -38,6 +38,7 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 from . import __version__
+from .cli_studio import add_web_options
 from .cli_tools import (
     add_camera_options,
     add_commands,
@@ -282,6 +283,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     summary = "run a motion file (default: the lab motion)"
     p = _command(sub, "run", cmd_run, summary, model, headless, speed, strict, recording)
+    add_web_options(p)
     p.add_argument(
         "motion",
         nargs="?",
@@ -289,11 +291,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     summary = "hold the starting (rest) pose, as the lab's first script"
     p = _command(sub, "hold", cmd_hold, summary, model, headless, speed, recording)
+    add_web_options(p)
     p.add_argument("--duration", type=float, default=30.0, help="seconds to hold (default 30)")
-    _command(sub, "view", cmd_view, "open the model in MuJoCo's interactive viewer", model)
+    add_web_options(
+        _command(sub, "view", cmd_view, "open the model in MuJoCo's viewer (or --web)", model),
+        linger=False,
+    )
     _command(sub, "model-path", cmd_model_path, "print the folder holding the shipped model")
     summary = "pose the arm in the viewer; prints each pose as a Python dict and as TOML"
-    _command(sub, "pose", cmd_pose, summary, model)
+    add_web_options(_command(sub, "pose", cmd_pose, summary, model), linger=False)
     summary = "simulate a motion file headless and judge it before hardware: PASS/FAIL"
     _add_check_options(_command(sub, "check", cmd_check, summary, model, strict))
     summary = "mirror a LeRobot SO-101 leader arm on the sim in real time (Ctrl-C stops)"
@@ -372,6 +378,10 @@ def _run(
 ) -> int:
     from .runplan import prepare_run  # imported here: it imports MuJoCo
 
+    if args.web:  # the studio in a browser (cli_studio.py)
+        from .cli_studio import run_web
+
+        return run_web(args, segments, start, strict)
     run = prepare_run(  # checks every setting before anything opens or moves
         segments,
         start=start,
@@ -411,6 +421,10 @@ def cmd_hold(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------------------- other commands
 def cmd_view(args: argparse.Namespace) -> int:
+    if args.web:  # the studio in a browser (cli_studio.py)
+        from .cli_studio import view_web
+
+        return view_web(args)
     from .simulation import Simulation  # imported here: they import MuJoCo
     from .viewer import view
 
@@ -427,6 +441,10 @@ def cmd_model_path(args: argparse.Namespace) -> int:
 
 
 def cmd_pose(args: argparse.Namespace) -> int:
+    if args.web:  # the pose finder in a browser (cli_studio.py)
+        from .cli_studio import pose_web
+
+        return pose_web(args)
     from .posefinder import (  # imported here: they import MuJoCo
         format_python,
         format_toml,

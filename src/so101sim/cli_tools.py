@@ -15,6 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from .cli_studio import add_web_options
 from .errors import MotionFileError, RecordingError
 
 SubParsers = Any  # argparse's private _SubParsersAction
@@ -132,9 +133,10 @@ def add_commands(
         ),
     )
     p.add_argument("script", help="the Python script to run (as you run it with python)")
-    p.add_argument("-o", "--output", required=True, help="the video to write (.mp4)")
+    p.add_argument("-o", "--output", help="the video to write (.mp4); --record PATH says the same")
     p.add_argument("--title", help="a title in the caption and the video's metadata")
     p.add_argument("script_args", nargs="*", help="arguments for the script, after --")
+    add_web_options(p)
     p.set_defaults(func=cmd_record)
 
     p = sub.add_parser(
@@ -173,12 +175,17 @@ def cmd_record(args: argparse.Namespace) -> int:
     from .handin import run_script  # imported here: it imports MuJoCo
     from .recording import VideoSettings
 
+    args.output = record_output(args)
     script_args = list(args.script_args)
     video = {name: getattr(args, name) for name in ("width", "height", "fps", "camera")}
     video |= {"quality": args.quality, "caption": args.caption, "title": args.title}
     video |= camera_options(args)
     VideoSettings(**video).validated()  # a bad setting stops before the script runs
     options = {**video, "plot": args.plot, "log": args.log, "force": args.force}
+    if args.web:  # the script live in a browser (cli_studio.py)
+        from .cli_studio import record_web
+
+        return record_web(args, options)
     try:
         run = run_script(args.script, script_args, args.output, **options)
     except Exception as exc:
@@ -195,6 +202,23 @@ def cmd_record(args: argparse.Namespace) -> int:
         print(f"wrote the {kind} to {path}")
     print(f"{args.script}: {run.simulated_seconds:.3f} s of simulated time")
     return run.exit_status
+
+
+def record_output(args: argparse.Namespace) -> str | None:
+    """``record``'s video: ``-o PATH`` or ``--record PATH`` (the same option under the name
+    ``run`` and ``hold`` use); one of them is needed, unless ``--web`` shows the script."""
+    if args.output and args.record and Path(args.output) != Path(args.record):
+        raise RecordingError(
+            f"-o {args.output} and --record {args.record} name two videos; expected one "
+            "(they are the same option of record)"
+        )
+    output = args.output or args.record
+    if output is None and not args.web:
+        raise RecordingError(
+            "record needs the video to write; expected -o VIDEO.mp4 (or --web to show the "
+            "script in a browser)"
+        )
+    return output
 
 
 def cmd_workspace(args: argparse.Namespace) -> int:

@@ -71,20 +71,22 @@ class RecordingViewer(Observer):
         self._closed = False
         self._started = False
         self._last_time = float(d.time)
+        self.also: list[Any] = []  # viewers shown alongside (the web studio): sync(), Observer
 
     # -- the Observer side (the lab helpers, Simulation.move_to(viewer=...))
     def on_start(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
         self._started = True
-        for o in self.recorder.observers:
+        for o in [*self.recorder.observers, *self.also]:
             o.on_start(m, d)
 
     def next_time(self) -> float:
         if self._closed:
             return float("inf")
-        return min((o.next_time() for o in self.recorder.observers), default=float("inf"))
+        observers = [*self.recorder.observers, *self.also]
+        return min((o.next_time() for o in observers), default=float("inf"))
 
     def on_time(self, m: mujoco.MjModel, d: mujoco.MjData) -> bool:
-        for o in self.recorder.observers:
+        for o in [*self.recorder.observers, *self.also]:
             if o.next_time() <= d.time + 1e-12:
                 o.on_time(m, d)
         return not self._closed
@@ -92,7 +94,7 @@ class RecordingViewer(Observer):
     def on_steps(self, trace: Trace, phase: str) -> None:
         if len(trace.time):
             self._last_time = float(trace.time[-1])
-        for o in self.recorder.observers:
+        for o in [*self.recorder.observers, *self.also]:
             o.on_steps(trace, phase or self.phase)
 
     # -- the viewer side (handout-style loops)
@@ -201,15 +203,20 @@ class NothingRecordedError(So101SimError, RuntimeError):
 class _Session:
     """The one recording of a script run: made when the script first opens a viewer."""
 
-    def __init__(self, clock: SimClock, video: PathArg, options: dict[str, Any]) -> None:
+    def __init__(
+        self, clock: SimClock, video: PathArg, options: dict[str, Any], live: Any = None
+    ) -> None:
         self.clock = clock
         self.video = video
         self.options = options
+        self.live = live
         self.viewer: RecordingViewer | None = None
 
     def launch_passive(self, m: mujoco.MjModel, d: mujoco.MjData, **_: Any) -> RecordingViewer:
         if self.viewer is None:
             self.viewer = record(m, d, self.video, **self.options)
+            if self.live is not None:
+                self.viewer.also.append(self.live(m, d))
         elif self.viewer.sim.data is not d:
             raise ViewerError(
                 "the script opened a second viewer on other data; so101sim record follows "
@@ -278,7 +285,12 @@ def _script_environment(path: Path, args: Sequence[str]) -> Iterator[None]:
 
 
 def run_script(
-    script: str | os.PathLike[str], args: Sequence[str], video: PathArg, **options: Any
+    script: str | os.PathLike[str],
+    args: Sequence[str],
+    video: PathArg,
+    *,
+    live: Any = None,
+    **options: Any,
 ) -> ScriptRun:
     """Run a handout-style ``script`` (with ``args``) headless and record it to ``video``.
 
@@ -289,6 +301,11 @@ def run_script(
     exceptions pass through (an exception propagates after the files are finished); its
     exit status is returned.
 
+    ``live``: a function ``live(m, d)`` returning a viewer (``sync()``, and an
+    :class:`~so101sim.simulation.Observer`) shown alongside, e.g. the web studio's
+    :class:`~so101sim.studio.live.StudioViewer`; the script then runs on the wall clock (the
+    live viewer paces it to real time), and ``video`` may be None (nothing recorded).
+
     Raises:
         NothingRecordedError: the script ended without opening a viewer.
     """
@@ -296,10 +313,11 @@ def run_script(
     if not path.is_file():
         raise So101SimError(f"script {str(path)!r} does not exist; expected a Python file")
     clock = SimClock()
-    session = _Session(clock, video, options)
+    session = _Session(clock, video, options, live)
     status, message = 0, ""
+    clocked = simulated_time(clock) if live is None else contextlib.nullcontext()
     try:
-        with _script_environment(path, args), _patched_viewer(session), simulated_time(clock):
+        with _script_environment(path, args), _patched_viewer(session), clocked:
             try:
                 runpy.run_path(str(path), run_name="__main__")
             except SystemExit as exc:
