@@ -339,9 +339,9 @@ class Studio:
 
     def play(self) -> None:
         with self._lock:
-            if self.finished and self.timeline.frames:
-                if self._play_time >= self.timeline.frames[-1].time:
-                    self._play_time = self.timeline.frames[0].time
+            frames = self.timeline.frames
+            if self.finished and frames and self._play_time >= frames[-1].time:
+                self._play_time = frames[0].time
             self.playing = True
 
     def pause(self) -> None:
