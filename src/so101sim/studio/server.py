@@ -127,17 +127,18 @@ class Timeline:
     the spacing doubles (bounded memory, however long the run)."""
 
     def __init__(self, rate: float = FRAME_RATE, capacity: int = MAX_FRAMES) -> None:
-        self.period = 1.0 / rate
+        self.period = self._period0 = 1.0 / rate
         self.capacity = max(2, int(capacity))
         self.frames: list[Frame] = []
         self._next = -np.inf
 
     def add(self, frame: Frame, force: bool = False) -> bool:
         """Keep ``frame`` if a frame is due at its time (or ``force``); True if kept."""
-        if not force and frame.time < self._next:
-            return False
         if self.frames and frame.time < self.frames[-1].time:  # the clock went back: a reset
             self.frames.clear()
+            self.period = self._period0
+        elif not force and frame.time < self._next:
+            return False
         self.frames.append(frame)
         self._next = frame.time + self.period - 1e-9
         if len(self.frames) > self.capacity:
@@ -199,6 +200,7 @@ class Studio:
         self.finished = False
         self.playing = True  # live: the run goes on; finished: the player plays
         self._play_time = 0.0
+        self._slider_set = float("nan")  # the timeline's value the player last set
         self._closed = threading.Event()
         self._player: threading.Thread | None = None
         self._scratch = mujoco.MjData(model)
@@ -328,7 +330,7 @@ class Studio:
             if frames:
                 t0, t1 = frames[0].time, frames[-1].time
                 self.slider.min, self.slider.max = t0, max(t1, t0 + 1e-3)
-                self.slider.value = t1
+                self._slider_set = self.slider.value = t1
                 self._play_time = t1
             self.slider.disabled = False
             if self.restart_button is not None:
@@ -370,7 +372,7 @@ class Studio:
             return
         with self._lock:
             t = float(self.slider.value)
-            if abs(t - self._play_time) > 1e-6:  # moved by the user, not by the player
+            if t != self._slider_set:  # moved by the user, not by the player
                 self.seek(t)
 
     def _play_loop(self, speed: float = 1.0) -> None:
@@ -387,7 +389,8 @@ class Studio:
                 frame = self.timeline.at(self._play_time)
                 self._draw(frame)
                 if self.slider is not None:
-                    self.slider.value = round(self._play_time, 3)
+                    self._slider_set = round(self._play_time, 3)
+                    self.slider.value = self._slider_set
                 if self._play_time >= end:
                     self.playing = False
 
