@@ -28,11 +28,11 @@ import pytest
 pytest.importorskip("viser", reason="the web extra is not installed: pip install 'so101sim[web]'")
 pytest.importorskip("mjviser", reason="the web extra is not installed: pip install 'so101sim[web]'")
 
-from so101sim import Simulation  # noqa: E402
-from so101sim.studio import Studio, StudioError  # noqa: E402
-from so101sim.studio.live import StudioObserver  # noqa: E402
-from so101sim.studio.server import Frame, Timeline  # noqa: E402
-from so101sim.units import STARTING_POSE  # noqa: E402
+from so101sim import Simulation
+from so101sim.studio import Studio, StudioError
+from so101sim.studio.live import StudioObserver
+from so101sim.studio.server import Frame, Timeline
+from so101sim.units import STARTING_POSE
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -140,7 +140,6 @@ def browser(tmp_path):
 
 def arm_hue(model) -> float:
     """The hue of the arm's most common (non-grey) visual colour in the model."""
-    import mujoco
 
     colours = []
     for g in range(model.ngeom):
@@ -148,11 +147,10 @@ def arm_hue(model) -> float:
         if model.geom_matid[g] >= 0:
             rgba = model.mat_rgba[model.geom_matid[g]]
         if model.geom_group[g] != 3 and model.geom_bodyid[g] > 0:
-            h, s, v = colorsys.rgb_to_hsv(*rgba[:3])
+            h, s, _ = colorsys.rgb_to_hsv(*rgba[:3])
             if s > 0.3:
                 colours.append(h)
     assert colours, "the arm has no coloured geom"
-    del mujoco
     return float(np.median(colours))
 
 
