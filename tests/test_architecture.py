@@ -38,6 +38,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
             "preflight_*",
             "distributed",
             "posefinder",
+            "studio",
+            "studio.*",
             "framing",
             "scenes",
             "cameras",

@@ -68,7 +68,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     if args.web:  # the episode in a browser (cli_studio.py)
         from .cli_studio import demo_web
 
-        return demo_web(args)
+        return demo_web(args, format_figures)
     if args.record:
         from .gl import prepare_for_rendering  # imported here: only rendering needs it
 

@@ -13,13 +13,11 @@ import argparse
 import contextlib
 import sys
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from .motion import Segment
     from .studio import Studio
-    from .units import Pose
 
 DEFAULT_PORT = 8080  # studio.DEFAULT_PORT, repeated: the parser imports no viser
 DEFAULT_HOST = "127.0.0.1"
@@ -125,38 +123,51 @@ def view_web(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------------- run, hold
-def run_web(
-    args: argparse.Namespace, segments: Sequence[Segment], start: Pose, strict: bool = False
-) -> int:
-    """``run --web`` / ``hold --web``: the motion live in the studio (at ``--speed``), with
-    its outputs (--record, --plot, --log) as without ``--web``; then ``--linger`` seconds."""
-    from .cli import _outputs, _progress_bar, _reporting, print_run
-    from .model import load_model
-    from .runplan import prepare_run
-    from .studio.live import StudioObserver
-    from .studio.server import check_linger
+class WebRun:
+    """``run --web`` / ``hold --web``: the full model (the page draws its meshes), the
+    studio's observer for the run (at ``--speed``), and ``--linger`` seconds after it."""
 
-    check_linger(args.linger)
-    run = prepare_run(  # checks every setting before anything opens or moves
-        segments,
-        start=start,
-        model=load_model(args.model),  # the full model: the page draws its meshes
-        speed=args.speed,
-        headless=True,  # the browser, not a window
-        strict=strict,
-        outputs=_outputs(args),
-    )
-    with _serving(_studio(run.sim.model, args)) as studio:
-        observer = StudioObserver(studio, run.pacer)
-        bar = _progress_bar(run.video_frames)
-        reporting = _reporting(run.recorder, bar) if run.recorder else contextlib.nullcontext()
-        with reporting:
-            result = run.execute(
-                progress=bar.update if bar is not None else None, observers=[observer]
-            )
-        print_run(result)
-        _linger(studio, args.linger)
-    return 0
+    def __init__(self, args: argparse.Namespace) -> None:
+        from .model import load_model
+        from .studio.server import check_linger, check_port, ensure_free, require_viser
+
+        self.args = args
+        self.linger = check_linger(args.linger)
+        require_viser()
+        ensure_free(args.host, check_port(args.port))  # before anything runs
+        self.model = load_model(args.model)
+        self.studio: Studio | None = None
+
+    def observers(self, run: Any) -> list[Any]:
+        from .studio.live import StudioObserver
+
+        self.studio = _studio(run.sim.model, self.args)
+        return [StudioObserver(self.studio, run.pacer)]
+
+    def close(self, finished: bool) -> None:
+        if self.studio is None:
+            return
+        try:
+            if finished:
+                _linger(self.studio, self.linger)
+        finally:
+            self.studio.close()
+
+
+@contextlib.contextmanager
+def web_run(args: argparse.Namespace) -> Iterator[WebRun | None]:
+    """A :class:`WebRun` with ``--web`` (else None); the studio stays up ``--linger`` seconds
+    after a run that ended, and is closed on the way out."""
+    if not getattr(args, "web", False):
+        yield None
+        return
+    web = WebRun(args)
+    finished = False
+    try:
+        yield web
+        finished = True
+    finally:
+        web.close(finished)
 
 
 # ---------------------------------------------------------------------------- pose
@@ -187,9 +198,9 @@ def pose_web(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------------- demo
-def demo_web(args: argparse.Namespace) -> int:
-    """``demo TASK --web``: the scripted expert's episode live in the studio."""
-    from .cli_demo import format_figures
+def demo_web(args: argparse.Namespace, format_figures: Any) -> int:
+    """``demo TASK --web``: the scripted expert's episode live in the studio
+    (``format_figures``: cli_demo's, passed in: this module imports no other command)."""
     from .envs import env_id
     from .envs.run import make, run_episode
     from .recording import VideoRecorder, VideoSettings
