@@ -12,7 +12,10 @@ Two ways, the same result:
   handout's wall-clock loops run exactly the simulated time they ask for.
 
 Frames are taken at the video's rate in *simulated* time; a title (the student's name) goes
-in the caption and the video's metadata.
+in the caption, the video's metadata and the plot's heading. The video is drawn when the
+recording closes (:class:`DeferredVideo` keeps each frame's state meanwhile, a few hundred bytes
+each), so that the camera is fitted to the whole motion the script made, as ``so101sim run
+--record`` fits it to the motion file's path: the arm's sweep fills the frame in every view.
 """
 
 from __future__ import annotations
@@ -36,6 +39,54 @@ from .simclock import SimClock, simulated_time
 from .simulation import Observer, Simulation, Trace
 
 PathArg = str | os.PathLike[str] | None
+
+
+class DeferredVideo(Observer):
+    """Stands in for a :class:`~so101sim.recording.VideoRecorder` while a script runs: it keeps
+    the state of each frame due (time, joint positions, mocap poses, phase) and draws nothing;
+    :meth:`replay` then gives the video its sweep (the arm's positions over the run, for the
+    camera's framing) and draws every frame kept, at the same simulated times."""
+
+    def __init__(self, video: Any, fps: float) -> None:
+        self.video = video
+        self.period = 1.0 / fps
+        self.states: list[tuple[float, np.ndarray, np.ndarray, np.ndarray, str]] = []
+        self.phase = ""
+        self._t0: float | None = None
+        self._count = 0
+        self._last = -np.inf
+
+    def next_time(self) -> float:
+        if self._t0 is None:
+            return -np.inf
+        return self._t0 + self._count * self.period - 1e-9
+
+    def on_steps(self, trace: Trace, phase: str) -> None:
+        self.phase = phase
+
+    def on_time(self, m: mujoco.MjModel, d: mujoco.MjData) -> bool:
+        t = float(d.time)
+        if self._t0 is None or t < self._last - 1e-9:  # first frame, or a reset
+            self._t0, self._count = t, 0
+        self.states.append((t, d.qpos.copy(), d.mocap_pos.copy(), d.mocap_quat.copy(), self.phase))
+        self._last = t
+        self._count += 1
+        return True
+
+    def replay(self, m: mujoco.MjModel) -> None:
+        """Fit the camera to the frames kept and draw them into the video (once)."""
+        states, self.states = self.states, []
+        if not states:
+            return
+        every = max(1, len(states) // 400)  # the sweep: at most ~400 poses to frame
+        self.video.sweep = [q for _, q, *_ in states[::every]] + [states[-1][1]]
+        d = mujoco.MjData(m)
+        for t, qpos, mocap_pos, mocap_quat, phase in states:
+            d.qpos[:], d.mocap_pos[:], d.mocap_quat[:] = qpos, mocap_pos, mocap_quat
+            d.time = t
+            mujoco.mj_forward(m, d)
+            self.video.phase = phase
+            self.video.on_time(m, d)
 
 
 class RecordingViewer(Observer):
@@ -62,6 +113,11 @@ class RecordingViewer(Observer):
     ) -> None:
         self.sim = Simulation.attach(m, d)
         self.recorder = Recorder(m, video=video, plot=plot, log=log, settings=settings, force=force)
+        self.deferred: DeferredVideo | None = None
+        if self.recorder.video is not None:  # drawn at close, framed on the whole motion
+            self.deferred = DeferredVideo(self.recorder.video, self.recorder.settings.fps)
+            observers = self.recorder.observers
+            observers[observers.index(self.recorder.video)] = self.deferred
         self.phase = phase
         self.opt = mujoco.MjvOption()
         self.cam = mujoco.MjvCamera()
@@ -128,7 +184,11 @@ class RecordingViewer(Observer):
         """Finish the files (once); return {"video"/"plot"/"log": path} of those written."""
         if not self._closed:
             self._closed = True
-            self.outputs = self.recorder.close()
+            try:  # interrupted while drawing: the frames drawn so far are the video
+                if self.deferred is not None:
+                    self.deferred.replay(self.sim.model)
+            finally:
+                self.outputs = self.recorder.close()
         return dict(self.outputs)
 
     def __enter__(self) -> RecordingViewer:

@@ -181,7 +181,8 @@ class Recorder:
         w, h = self.plot_size
         # a second try (after a Ctrl-C) may find the file the first one wrote
         force, self._plot_tries = self.force or self._plot_tries > 0, self._plot_tries + 1
-        return plot_run(run, self.plot_path, width=w, height=h, force=force)
+        title = getattr(self.settings, "title", None)  # the run's title heads the plot too
+        return plot_run(run, self.plot_path, width=w, height=h, force=force, title=title)
 
 
 MAX_INTERRUPTS = 2
