@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from recording_helpers import read_video
+
 from so101sim.handin import run_script
 
 SCRIPT = """
