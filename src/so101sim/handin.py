@@ -35,6 +35,7 @@ import numpy as np
 
 from .errors import So101SimError, ViewerError
 from .recording import Recorder, VideoSettings
+from .recording.inline import RecordedFiles
 from .simclock import SimClock, simulated_time
 from .simulation import Observer, Simulation, Trace
 
@@ -189,7 +190,11 @@ class RecordingViewer(Observer):
                     self.deferred.replay(self.sim.model)
             finally:
                 self.outputs = self.recorder.close()
-        return dict(self.outputs)
+        return RecordedFiles(self.outputs)
+
+    def _repr_html_(self) -> str:
+        """In Jupyter: the files written, the video and the plot shown inline."""
+        return RecordedFiles(self.outputs)._repr_html_()
 
     def __enter__(self) -> RecordingViewer:
         return self
