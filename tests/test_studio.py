@@ -378,3 +378,45 @@ def test_a_live_run_keeps_real_time_at_speed():
         sim.hold(1.0, observers=[observer])
         assert time.perf_counter() - t0 >= 0.24
         assert studio.timeline.frames[-1].time == pytest.approx(1.0, abs=0.04)
+
+
+def test_record_web_shows_the_students_script_live_at_real_time(tmp_path):
+    """record SCRIPT --web: the script's launch_passive viewer draws in the studio, paced to
+    the wall clock (the handout's wall-clock loop then runs about its simulated seconds)."""
+    from so101sim.model import scene_path
+
+    script = Path(__file__).parent / "data" / "wallclock_lab.py"
+    port = free_port()
+    r = subprocess.run(
+        cli("record", str(script), "--web", "--port", str(port), "--linger", "0", "--",
+            str(scene_path())),
+        capture_output=True, text=True, env=env(), timeout=180,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert f"http://127.0.0.1:{port}" in r.stdout
+    simulated = float(r.stdout.split("s of simulated time")[0].split()[-1])
+    # a 6 s wall-clock loop paced to real time: never more simulated seconds than wall seconds
+    # (unpaced it steps as fast as it can: many times more); a slow machine only gives fewer
+    assert 0.5 < simulated <= 6.5
+
+
+def test_demo_web_runs_the_episode_in_the_studio():
+    port = free_port()
+    r = subprocess.run(
+        cli("demo", "pick_cube", "--web", "--port", str(port), "--linger", "0"),
+        capture_output=True, text=True, env=env(), timeout=180,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    assert f"http://127.0.0.1:{port}" in r.stdout and "pick_cube, seed 0: success" in r.stdout
+
+
+def test_a_bad_linger_or_port_is_refused_before_anything_runs():
+    r = subprocess.run(
+        cli("run", "--web", "--linger", "-1"), capture_output=True, text=True, env=env(), timeout=60
+    )
+    assert r.returncode == 2 and "linger" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    r = subprocess.run(
+        cli("view", "--web", "--port", "70000"), capture_output=True, text=True, env=env(),
+        timeout=60,
+    )  # fmt: skip
+    assert r.returncode == 2 and "port" in r.stderr
