@@ -200,7 +200,7 @@ def test_without_a_display_the_message_is_true_for_a_script_and_the_command(monk
 
 
 @pytest.mark.viewer
-def test_dragging_a_joint_slider_in_the_viewer_prints_the_pose(xvfb):
+def test_dragging_a_joint_slider_in_the_viewer_prints_the_pose(xvfb, tmp_path):
     """The real pose finder under Xvfb: a click on Pause pauses MuJoCo's viewer, one opens the
     right panel's Joint section, and dragging shoulder_pan's slider (xdotool) moves the arm:
     the command prints the new pose in degrees."""
@@ -267,7 +267,7 @@ def test_dragging_a_joint_slider_in_the_viewer_prints_the_pose(xvfb):
             with contextlib.suppress(Exception):
                 from PIL import ImageGrab
 
-                ImageGrab.grab(xdisplay=xvfb).save("/tmp/i24/posefail.png")
+                ImageGrab.grab(xdisplay=xvfb).save(tmp_path / "screen.png")  # to look at
         assert len(pans()) >= 2 and pans()[-1] > 5.0, "".join(lines)
         assert any(line.startswith("toml:   pose_2 = { shoulder_pan = ") for line in lines)
     finally:
