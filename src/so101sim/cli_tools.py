@@ -128,8 +128,10 @@ def add_commands(
         description=(
             "Runs SCRIPT unchanged: its mujoco.viewer.launch_passive(m, d) records instead of "
             "opening a window, and its clock (time.time, time.sleep, ...) follows simulated "
-            "time, so a wall-clock '2 s' move is 2 s of simulated time. Arguments after '--' "
-            "go to the script."
+            "time, so a wall-clock '2 s' move is 2 s of simulated time. The video is drawn "
+            "when the script ends, the camera fitted to the whole motion. With --web the "
+            "script runs on the wall clock instead, shown live in a web browser (and recorded "
+            "with -o). Arguments after '--' go to the script."
         ),
     )
     p.add_argument("script", help="the Python script to run (as you run it with python)")
