@@ -27,7 +27,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("kinematics", ("kinematics",)),
     ("sim", ("sim",)),
     ("motion", ("motion",)),
-    ("outputs", ("recording", "viewer", "preflight", "scenes", "fidelity")),
+    ("outputs", ("recording", "viewer", "preflight", "scenes", "fidelity", "studio")),
     ("apps", ("lab", "robot", "envs")),
     ("cli", ("cli", "__main__")),
 ]

@@ -89,7 +89,7 @@ def test_check_then_run_example_runs_from_any_folder(tmp_path):
     out = run("check_then_run.py", cwd=tmp_path)  # its default wave.toml is found all the same
     assert "PASS" in out
     ends = re.findall(r"^\s*(.+?): ended at ([\d.]+) s", out, flags=re.M)
-    assert ends[0][0] == "raise" and ends[-1] == ("fold", "8.500")
+    assert ends[0][0] == "raise" and ends[-1] == ("fold", "9.500")
 
 
 @pytest.mark.slow

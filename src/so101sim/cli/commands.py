@@ -12,6 +12,10 @@ from .tools import output_hint
 
 # ---------------------------------------------------------------------------- other commands
 def cmd_view(args: argparse.Namespace) -> int:
+    if args.web:  # the studio in a browser (cli/studio.py)
+        from .studio import view_web
+
+        return view_web(args)
     from ..sim.simulation import Simulation  # imported here: they import MuJoCo
     from ..viewer import view
 
@@ -28,31 +32,33 @@ def cmd_model_path(args: argparse.Namespace) -> int:
 
 
 def cmd_pose(args: argparse.Namespace) -> int:
+    if args.web:  # the pose finder in a browser (cli/studio.py)
+        from .studio import pose_web
+
+        return pose_web(args)
     from ..viewer.posefinder import (  # imported here: they import MuJoCo
+        INSTRUCTIONS,
+        check_display,
+        find_poses,
         format_python,
         format_toml,
-        open_pose_viewer,
         pose_scene,
-        watch_poses,
     )
 
+    check_display()  # without a display its error is all the user sees
     m, d = pose_scene(args.model)
-    # Open the viewer first: without a display its error is all the user sees.
-    with open_pose_viewer(m, d) as handle:
+    print(INSTRUCTIONS, flush=True)
+
+    def show(change: Any) -> None:
         print(
-            "Move the joint sliders (right panel, 'Joint'), or double-click a part and "
-            "Ctrl+right-drag it. Each pose the arm is left in is printed below; close the "
-            "window to finish.",
+            f"\n# pose {change.number} (t = {change.time:.1f} s)\n"
+            f"python: {format_python(change.pose)}\n"
+            f"toml:   {format_toml(f'pose_{change.number}', change.pose)}"
+            + (f"\ntip:    {change.tip.format()}" if change.tip is not None else ""),
             flush=True,
         )
-        for change in watch_poses(handle, m, d):
-            print(
-                f"\n# pose {change.number} (t = {change.time:.1f} s)\n"
-                f"python: {format_python(change.pose)}\n"
-                f"toml:   {format_toml(f'pose_{change.number}', change.pose)}"
-                + (f"\ntip:    {change.tip.format()}" if change.tip is not None else ""),
-                flush=True,
-            )
+
+    find_poses(m, d, show)  # MuJoCo's viewer until its window is closed
     return 0
 
 

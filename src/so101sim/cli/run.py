@@ -44,22 +44,27 @@ def _run(
     args: argparse.Namespace, segments: Sequence[Segment], start: Pose, strict: bool = False
 ) -> int:
     from .runplan import prepare_run  # imported here: it imports MuJoCo
+    from .studio import web_run  # --web: the studio in a browser (cli/studio.py)
 
-    run = prepare_run(  # checks every setting before anything opens or moves
-        segments,
-        start=start,
-        model=args.model,
-        speed=args.speed,
-        headless=args.headless,
-        strict=strict,
-        outputs=_outputs(args),
-    )
-    if run.viewer.note:
-        print(run.viewer.note)
-    bar = _progress_bar(run.video_frames)
-    with _reporting(run.recorder, bar) if run.recorder else contextlib.nullcontext():
-        result = run.execute(progress=bar.update if bar is not None else None)
-    print_run(result)
+    with web_run(args) as web:  # None without --web
+        run = prepare_run(  # checks every setting before anything opens or moves
+            segments,
+            start=start,
+            model=web.model if web else args.model,
+            speed=args.speed,
+            headless=args.headless or web is not None,
+            strict=strict,
+            outputs=_outputs(args),
+        )
+        if run.viewer.note:
+            print(run.viewer.note)
+        bar = _progress_bar(run.video_frames)
+        with _reporting(run.recorder, bar) if run.recorder else contextlib.nullcontext():
+            result = run.execute(
+                progress=bar.update if bar is not None else None,
+                observers=web.observers(run) if web else (),
+            )
+        print_run(result)
     return 0
 
 

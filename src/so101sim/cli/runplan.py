@@ -88,20 +88,24 @@ class PreparedRun:
 
         return video_frames(self.duration, self.recorder.settings.fps)
 
-    def execute(self, progress: Callable[[int], Any] | None = None) -> RunResult:
+    def execute(
+        self, progress: Callable[[int], Any] | None = None, observers: Sequence[Observer] = ()
+    ) -> RunResult:
         """Run the motion, in the viewer if one was chosen (paced to the wall clock), writing
-        to the recorder's outputs; ``progress`` is called with 1 per video frame. The recorder
-        is left open: close it (``recorder.close()``) afterwards, also on an error."""
+        to the recorder's outputs; ``progress`` is called with 1 per video frame; ``observers``
+        also watch (the web studio). The recorder is left open: close it
+        (``recorder.close()``) afterwards, also on an error."""
         if progress is not None and self.recorder is not None and self.recorder.video is not None:
             self.recorder.video.progress = progress
         with ExitStack() as stack:
-            observers: list[Observer] = list(self.recorder.observers) if self.recorder else []
+            watching: list[Observer] = list(self.recorder.observers) if self.recorder else []
+            watching.extend(observers)
             if self.viewer.use:
                 handle = stack.enter_context(
                     open_viewer(self.sim.model, self.sim.data, mirror=True, quality="auto")
                 )
-                observers.append(ViewerObserver(handle, self.pacer))
-            return run_motion(self.sim.model, self.sim.data, self.segments, observers=observers)
+                watching.append(ViewerObserver(handle, self.pacer))
+            return run_motion(self.sim.model, self.sim.data, self.segments, observers=watching)
 
 
 def prepare_run(
