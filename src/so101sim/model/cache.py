@@ -11,8 +11,8 @@ binary format (MJB) loads in a fifth of that time, bit for bit the same model.
 * **Where:** ``$SO101SIM_CACHE_DIR``, else ``$XDG_CACHE_HOME/so101sim``, else
   ``~/.cache/so101sim``. ``SO101SIM_NO_CACHE=1`` turns the cache off.
 * **Physics only:** ``load_or_compile(..., physics_only=True)`` keeps a second entry, the model
-  without its mesh triangles and their trees (:mod:`so101sim.model.trim`): 14 MB instead of 67,
-  for runs that never draw.
+  without its visual geoms, its collision meshes as their convex hulls
+  (:mod:`so101sim.model.trim`): 18 MB instead of 67, for runs that never draw.
 * **Fast key:** each model folder's digest is remembered (``digests/``) with its files' sizes,
   times and inodes; while they are unchanged, the files are not read and hashed again.
 * **Safe:** an entry is written under a temporary name in the same folder and renamed, so two
@@ -166,8 +166,8 @@ def load_or_compile(
     exists, else ``compile_fn()`` (then saved to the cache when possible).
 
     ``physics_only``: the model without what only drawing and ray casting use
-    (:func:`so101sim.model.trim.physics_only`: the same physics bit for bit, about a fifth of
-    the memory), kept as its own entry; the full model when the cache is off or unwritable or
+    (:func:`so101sim.model.trim.physics_only`: the same physics, about a quarter of the
+    memory), kept as its own entry; the full model when the cache is off or unwritable or
     the model cannot be trimmed."""
     if not enabled():
         return compile_fn()
@@ -205,16 +205,21 @@ def _physics_only(
     full = load_or_compile(path, compile_fn, variant=variant)
     if refused.is_file():
         return full
-    data = modeltrim.physics_only(full)
     try:
-        if data is None:
+        spec = mujoco.MjSpec.from_file(str(path))
+    except (ValueError, OSError, mujoco.FatalError) as exc:
+        log.debug("model cache: cannot read %s as a spec (%s)", path, exc)
+        return full
+    trimmed = modeltrim.physics_only(spec, full)
+    try:
+        if trimmed is None:
             _write_bytes(refused, b"")
             return full
-        _write_bytes(entry, data)
+        _write(entry, trimmed)
     except OSError as exc:
         log.debug("model cache: cannot write %s: %s", entry, exc)
-        return full
-    return _read(entry) or full
+        return full if trimmed is None else trimmed
+    return _read(entry) or trimmed
 
 
 @dataclass(frozen=True)
