@@ -59,3 +59,15 @@ def test_the_packages_offer_what_they_offered():
     assert "lazy_names" not in so101sim.__all__  # a private module's name is not offered
     assert {"Recorder", "VideoSettings", "video_frames"} <= set(so101sim.recording.__all__)
     assert so101sim.recording.video.__name__ == "so101sim.recording.video"
+
+
+def test_the_labs_light_modules_import_no_mujoco():
+    import subprocess
+
+    code = (
+        "import sys; import so101sim.lab.starter, so101sim.lab.simclock; "
+        "print('mujoco' in sys.modules); from so101sim.lab import move_to_pose; "
+        "print('mujoco' in sys.modules, move_to_pose.__module__)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "True", "so101sim.lab.helpers"]
