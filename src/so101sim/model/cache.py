@@ -293,7 +293,8 @@ def clear() -> CacheInfo:
     if before.folder.is_dir():
         for f in before.folder.glob(f"*{ENTRY_SUFFIX}"):
             f.unlink(missing_ok=True)
-        for pattern in (f"*{DIGEST_SUFFIX}", f"*{REFUSED_SUFFIX}", ".*.partial"):
+        # digests/*.txt: the folder-digest memo of cache format 1, no longer written
+        for pattern in (f"*{DIGEST_SUFFIX}", f"*{REFUSED_SUFFIX}", ".*.partial", "digests/*.txt"):
             for f in before.folder.glob(pattern):
                 f.unlink(missing_ok=True)
     return before
