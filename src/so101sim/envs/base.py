@@ -62,7 +62,7 @@ _DIVERGENCE = np.array(
     ]
 )
 RENDER_MODES = ("human", "rgb_array")
-MAX_SPEED = 1e4
+MAX_JOINT_SPEED = 1e4
 """Joint speeds in ``agent_vel`` are clipped to this (arm units per second)."""
 MAX_DISTANCE_M = 10.0
 """Object positions in ``environment_state`` are clipped to this (metres)."""
@@ -183,7 +183,7 @@ class So101TaskEnv(SceneState, gym.Env):
                 (upper + tol).astype(np.float32),
                 dtype=np.float32,
             ),
-            "agent_vel": spaces.Box(-MAX_SPEED, MAX_SPEED, (n,), dtype=np.float32),
+            "agent_vel": spaces.Box(-MAX_JOINT_SPEED, MAX_JOINT_SPEED, (n,), dtype=np.float32),
         }
         if self.object_state:
             k = len(self.scene.objects)
@@ -357,7 +357,7 @@ class So101TaskEnv(SceneState, gym.Env):
         sim = self.sim
         space = self.observation_space["agent_pos"]
         pos = np.clip(sim.pose_array(), space.low, space.high).astype(np.float32)
-        vel = np.clip(sim.data.qvel[sim.index.dof] / self._scale, -MAX_SPEED, MAX_SPEED)
+        vel = np.clip(sim.data.qvel[sim.index.dof] / self._scale, -MAX_JOINT_SPEED, MAX_JOINT_SPEED)
         vel = vel.astype(np.float32)
         obs: dict[str, Any] = {"agent_pos": pos, "agent_vel": vel}
         if self.object_state:

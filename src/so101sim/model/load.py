@@ -49,9 +49,9 @@ def load_model(
     read-only; use ``copy.copy(model)`` for a private copy you want to change.
 
     ``physics_only=True``: for runs that never draw and never cast rays (``so101sim run
-    --headless``): the model without its mesh triangles and their bounding-volume trees
-    (:mod:`so101sim.model.trim`), the same physics bit for bit in about a fifth of the memory
-    and load time. Do not cast rays at it (so101sim's renderers draw the full model of the same
+    --headless``): the model without its visual geoms, its collision meshes as their convex
+    hulls (:mod:`so101sim.model.trim`), the same physics in about a quarter of the memory and
+    load time. Do not cast rays at it (so101sim's renderers draw the full model of the same
     file instead). When it cannot be made (the disk cache is off, or the model's physics may read
     what is dropped: flexes, signed-distance fields, plugins, rangefinders), this is the full
     model.

@@ -41,7 +41,15 @@ from .profiles import (
     plan,
     steps_for,
 )
-from .stepping import Observer, Pacer, Trace, ViewerObserver, advance, hold_steps, measured_radians
+from .stepping import (
+    Observer,
+    Pacer,
+    Trace,
+    ViewerObserver,
+    advance,
+    advance_unobserved,
+    measured_radians,
+)
 
 if TYPE_CHECKING:
     from ..kinematics import Kinematics, TipPose
@@ -351,7 +359,7 @@ class Simulation:
             with self.lock:  # nothing watches: MuJoCo's own loop, on the targets as set
                 q = None if self.was_commanded else self.units.to_radians(self.pose_array())
                 self._state.commanded = True
-                hold_steps(self.model, self.data, q, n)
+                advance_unobserved(self.model, self.data, q, n)
             empty = np.empty((0, len(JOINT_NAMES)))
             return Trace(np.empty(0), empty, empty, True, n)
         target = self.commanded_array()

@@ -51,9 +51,9 @@ def measured_radians(m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------- pacing
-MAX_SPEED = 1000.0
+MAX_PLAYBACK_SPEED = 1000.0
 """The fastest playback a :class:`Pacer` accepts, in multiples of real time."""
-MIN_SPEED = 1e-3
+MIN_PLAYBACK_SPEED = 1e-3
 """The slowest playback a :class:`Pacer` accepts (1/1000 of real time)."""
 
 
@@ -77,10 +77,10 @@ class Pacer:
         self.speed = check_range(
             speed,
             "speed",
-            low=MIN_SPEED,
-            high=MAX_SPEED,
+            low=MIN_PLAYBACK_SPEED,
+            high=MAX_PLAYBACK_SPEED,
             expected=(
-                f"a multiple of real time from {MIN_SPEED:g} to {MAX_SPEED:g} "
+                f"a multiple of real time from {MIN_PLAYBACK_SPEED:g} to {MAX_PLAYBACK_SPEED:g} "
                 "(1 = real time, 0.5 = half speed)"
             ),
         )
@@ -307,7 +307,7 @@ def _block_size(observers: Sequence[Observer], now: float, dt: float, left: int)
     return min(left, _CHUNK, max(1, math.ceil((t_next - now) / dt - 1e-9)))
 
 
-def hold_steps(
+def advance_unobserved(
     m: mujoco.MjModel,
     d: mujoco.MjData,
     target: np.ndarray | None,

@@ -301,8 +301,8 @@ def open_viewer(
     """
     if not mirror and is_physics_only(m):
         raise SettingError(
-            "this model was loaded with physics_only=True: its meshes have no triangles to "
-            "draw; open the viewer with mirror=True (it draws the full model of the same file) "
+            "this model was loaded with physics_only=True: it has no visual geoms to draw;"
+            " open the viewer with mirror=True (it draws the full model of the same file) "
             "or load the model with so101sim.load_model(path)"
         )
     _check_can_open(quality, mirror)
