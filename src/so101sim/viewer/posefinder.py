@@ -30,6 +30,7 @@ from ..errors import ModelError, ViewerError
 from ..kinematics import TipPose, for_model
 from ..model.load import arm_index, arm_units, load_model
 from ..sim.simulation import Pacer, measured_radians
+from ..sim.stepping import hold_steps
 from ..units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose
 
 
@@ -148,8 +149,7 @@ def watch_poses(
         if change is not None:
             yield replace(change, tip=_tip(m, change.pose))
         with viewer.lock():
-            for _ in range(n):
-                mujoco.mj_step(m, d)
+            hold_steps(m, d, None, n)  # the stepping kernel: the targets as the sliders set them
         pacer.wait(float(d.time))
 
 
