@@ -130,6 +130,9 @@ class Trace:
     qpos: np.ndarray  # (n, 6)
     completed: bool = True
     steps: int = -1  # steps taken; -1: len(time) (a trace may keep no per-step arrays)
+    # the blocks observers see: every step's whole state (FULLPHYSICS rows: time, qpos, qvel,
+    # ...), as the kernel recorded it; None in the trace a run returns
+    states: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.steps if self.steps >= 0 else len(self.time)
@@ -442,7 +445,9 @@ def advance(
             ctrl_full = np.repeat(d.ctrl[None], k, axis=0)
             ctrl_full[:, idx.actuator] = targets[done : done + k]
             states = step_block(m, d, ctrl_full, scratch=s0)
-            block = Trace(states[:, 0], targets[done : done + k], states[:, qpos_cols])
+            block = Trace(
+                states[:, 0], targets[done : done + k], states[:, qpos_cols], states=states
+            )
             if keep_trace:
                 times[done : done + k] = block.time
                 qpos[done : done + k] = block.qpos
