@@ -2,8 +2,8 @@
 measure each as the single check does.
 
 * **Plan once.** :func:`plan_motion` plans what the motion commands at every physics step
-  (:func:`~so101sim.motion.commanded_path`, one segment at a time to know where each step of
-  the motion ends). Every variant gets the same targets, shifted by its zero offsets.
+  (:func:`~so101sim.motion.plan.plan_segments`, which knows where each step of the motion
+  ends). Every variant gets the same targets, shifted by its zero offsets.
 * **Measure from the rollout.** A copy of the model gets sensors at load time (``MjSpec``; the
   vendored files stay unchanged, physics bit for bit the same: sensors only read): one
   ``actuatorfrc`` per arm actuator (the force that acted during the step, as the single check
@@ -43,7 +43,8 @@ import numpy as np
 from ..errors import ModelError
 from ..model.cache import load_or_compile
 from ..model.load import arm_index, arm_units
-from ..motion.segments import Hold, Segment, commanded_path
+from ..motion.plan import plan_segments
+from ..motion.segments import Hold, Segment
 from ..sim.limited import ShortMove, check_limited_moves
 from ..sim.simulation import Simulation
 from ..sim.stepping import Observer, advance, step_block
@@ -91,11 +92,8 @@ def plan_motion(
         sim.commanded_array(), steps, sim.timestep, units=sim.units, strict=strict
     )
     units = sim.units
-    rows, pose = [], dict(start)
-    for seg in steps:
-        _, targets = commanded_path(model, [seg], pose)
-        rows.append(targets)
-        pose = units.array_to_pose(targets[-1])
+    planned = plan_segments(model, steps, sim.commanded_array())  # once, every segment checked
+    rows = [np.asarray(p.targets) for p in planned.segments]
     sizes = [len(r) for r in rows]
     return MotionPlan(
         phases=tuple(s.phase for s in steps),
