@@ -24,6 +24,7 @@ the first step, one after each step), for :func:`~so101sim.preflight.measure.col
 
 from __future__ import annotations
 
+import bisect
 import copy
 import threading
 import weakref
@@ -234,7 +235,7 @@ class StateRecorder(Observer):
         m, scr = self.m, _screen(self.m)
         speed = np.maximum(np.abs(v_before), np.abs(v_after)) @ scr.lever
         safety = 1.01 if m.opt.integrator in _EXACT else 2.0
-        moved = np.concatenate([[0.0], np.cumsum(safety * self.dt * speed)])
+        moved = np.concatenate([[0.0], np.cumsum(safety * self.dt * speed)]).tolist()
         top = max(float(m.geom_margin.max(initial=0.0)), float(m.pair_margin.max(initial=0.0)))
         if m.opt.enableflags & int(mujoco.mjtEnableBit.mjENBL_OVERRIDE):
             top = max(top, float(m.opt.o_margin))
@@ -254,7 +255,7 @@ class StateRecorder(Observer):
                 j += 1
                 continue
             # clear until the geoms may have closed the gap (each moves at most `moved`)
-            j = max(j + 1, int(np.searchsorted(moved, moved[j] + 0.5 * gap, side="left")))
+            j = max(j + 1, bisect.bisect_left(moved, moved[j] + 0.5 * gap))
 
     @staticmethod
     def _gap(scr: _Screen, qpos: np.ndarray, top: float) -> float:
