@@ -27,11 +27,10 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from ..errors import ClosedError, SettingError, SimulationDivergedError, ViewerError
+from ..errors import ClosedError, SettingError, ViewerError
 from ..exitgate import gated
 from ..recording import FREE_CAMERA, QUALITY_CHOICES, FrameRenderer, VideoSettings
 from ..recording.settings import check_quality
@@ -47,6 +46,7 @@ from ..scenes import (
     sample_placements,
 )
 from ..sim.simulation import Simulation
+from ..sim.stepping import advance_unobserved
 from ..units import JOINT_NAMES, LIMIT_TOLERANCE, STARTING_POSE, Pose
 from ..validation import check_choice, check_count, check_range
 from .actions import ActionMap, ControlSettings
@@ -54,12 +54,8 @@ from .grasp import limit_gripper
 from .scene_state import SceneState
 
 REWARD_MODES = ("dense", "sparse")
-_DIVERGENCE = np.array(
-    [
-        int(mujoco.mjtWarning.mjWARN_BADQACC),
-        int(mujoco.mjtWarning.mjWARN_BADQVEL),
-        int(mujoco.mjtWarning.mjWARN_BADQPOS),
-    ]
+_ADVICE = (
+    "Expected stable physics: reset the environment, and check the actions and the scene's masses"
 )
 RENDER_MODES = ("human", "rgb_array")
 MAX_JOINT_SPEED = 1e4
@@ -268,8 +264,8 @@ class So101TaskEnv(SceneState, gym.Env):
 
     def _advance(self, targets: np.ndarray) -> None:
         """Hold ``targets`` for one control period. With observers (a video) or a viewer, the
-        simulation's own stepping serves them; without, MuJoCo takes the steps in one call
-        (the same physics, without the per-step bookkeeping)."""
+        simulation's own stepping serves them; without, the stepping kernel takes them in MuJoCo's
+        own loop (the same physics, without the per-step bookkeeping)."""
         sim = self.sim
         k = self._steps
         n = max(1, round((k + 1) * self._period_steps) - round(k * self._period_steps))
@@ -277,20 +273,8 @@ class So101TaskEnv(SceneState, gym.Env):
             rows = np.broadcast_to(targets, (n, len(targets)))
             sim.advance(rows, viewer=self._viewer, phase=self.spec_name, keep_trace=False)
             return
-        m, d = self.model, sim.data
         sim.command_array(targets, check=False)
-        t_end = d.time + n * m.opt.timestep
-        counts = d.warning.number  # a view: MuJoCo counts its warnings there
-        counts[_DIVERGENCE] = 0
-        mujoco.mj_step(m, d, nstep=n)
-        bad = abs(d.time - t_end) > m.opt.timestep / 2 or not np.isfinite(d.qpos).all()
-        if bad or counts[_DIVERGENCE].any():
-            warned = [mujoco.mjtWarning(w).name for w in _DIVERGENCE if counts[w]]
-            raise SimulationDivergedError(
-                f"the simulation diverged before t = {t_end:.3f} s "
-                f"({', '.join(warned) or 'the state is not finite'}); expected stable physics: "
-                "reset the environment, and check the actions and the scene's masses"
-            )
+        advance_unobserved(self.model, sim.data, None, n, advice=_ADVICE)  # the stepping kernel
 
     @property
     def spec_name(self) -> str:

@@ -134,6 +134,11 @@ class MotionFile:
     lines: tuple[int, ...]  # the line each step starts on
     poses: dict[str, dict[str, float]] = field(default_factory=dict)  # the file's own poses
     description: str = ""
+    # the tip moves as the loader planned them (step index -> (start, targets), arm units),
+    # on ``model``: a run on that model uses them (motion.plan.plan_segments(known=...))
+    tip_plans: dict[int, tuple[np.ndarray, np.ndarray]] = field(
+        default_factory=dict, repr=False, compare=False
+    )
 
 
 # ---------------------------------------------------------------------------- the loader
@@ -184,6 +189,7 @@ class _Loader:
         self.path = path
         self.units = units
         self.planner = TipPlanner(model)  # tip moves, planned as the run will plan them
+        self.tip_plans: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.loc = loc
         self.radians = False  # body joints given in radians (units = "rad")
         lo, hi = units.limits
@@ -230,6 +236,7 @@ class _Loader:
             lines=tuple(line for _, line in steps),
             poses=poses,
             description=description,
+            tip_plans=dict(self.tip_plans),
         )
 
     def description(self, value: Any) -> str:
@@ -349,7 +356,10 @@ class _Loader:
         d = self.duration(raw["duration"], (*where, "duration"), what, MAX_MOVE_DURATION_S)
         profile = self.profile(raw.get("profile", self.default_profile), (*where, "profile"))
         if kind == "move" and is_tip_move(raw["move"]):
-            return self.tip_move(raw["move"], where, d, profile, name or "to_tip", current)
+            move, end = self.tip_move(raw["move"], where, d, profile, name or "to_tip", current)
+            if self.planner.last is not None:
+                self.tip_plans[i] = self.planner.last
+            return move, end
         target, label = self.target(kind, raw[kind], current, (*where, kind))
         pose = self.units.array_to_pose(target)
         return Move(pose, d, profile=profile, phase=name or label), target

@@ -513,6 +513,24 @@ class Simulation:
             targets = np.broadcast_to(start, (n, len(start)))
             return self._segment("hold", phase, start, targets, viewer, observers, trace)
 
+    @gated  # no MuJoCo call left running at exit (exitgate)
+    def run_targets(
+        self,
+        kind: str,
+        phase: str,
+        start: np.ndarray,
+        targets: np.ndarray,
+        *,
+        viewer: Any = None,
+        observers: Sequence[Observer] = (),
+        trace: bool | None = None,
+    ) -> SegmentResult:
+        """Step a segment already planned (and checked): ``targets`` (n, 6) arm units from the
+        commanded ``start``, as :meth:`move_to` (``kind`` "move") or :meth:`hold` ("hold")
+        would after planning it (:func:`so101sim.motion.plan.run_plan` runs a plan this way)."""
+        with self.lock:
+            return self._segment(kind, phase, start, targets, viewer, observers, trace)
+
     def _segment(
         self,
         kind: str,

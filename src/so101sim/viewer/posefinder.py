@@ -36,6 +36,7 @@ from ..errors import ModelError, ViewerError
 from ..kinematics import TipPose, for_model
 from ..model.load import arm_index, arm_units, load_model
 from ..sim.simulation import Pacer, measured_radians
+from ..sim.stepping import advance_unobserved
 from ..units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose
 
 
@@ -212,8 +213,9 @@ def watch_poses(
         if change is not None:
             yield replace(change, tip=_tip(m, change.pose))
         with viewer.lock():
-            for _ in range(n):
-                mujoco.mj_step(m, d)
+            advance_unobserved(
+                m, d, None, n
+            )  # the stepping kernel: the targets as the sliders set them
         pacer.wait(float(d.time))
 
 
