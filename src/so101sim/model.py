@@ -21,6 +21,7 @@ import numpy as np
 from .errors import ModelError
 from .modelcache import load_or_compile
 from .units import JOINT_NAMES, ArmUnits
+from .validation import check_input_file
 
 log = logging.getLogger(__name__)
 
@@ -57,17 +58,11 @@ def load_model(path: str | Path | None = None, *, physics_only: bool = False) ->
     Raises:
         ModelError: the file does not exist, does not compile, or lacks the SO-101 joints.
     """
-    p = Path(path).expanduser() if path is not None else scene_path()
-    if p.exists() and not p.is_file():
-        raise ModelError(
-            f"model file {str(p)!r} is not a regular file; expected an MJCF file such as the "
-            f"shipped {str(scene_path())!r}"
-        )
-    if not p.is_file():
-        raise ModelError(
-            f"model file {str(p)!r} does not exist; expected an MJCF file such as the shipped "
-            f"{str(scene_path())!r}"
-        )
+    if path is None:
+        p = scene_path()
+    else:  # empty, too long, missing, a folder, a device: one line saying so, no OSError
+        expected = f"an MJCF file such as the shipped {str(scene_path())!r}"
+        p = check_input_file(path, "model file", expected=expected, error=ModelError)
     p = p.resolve()
     key = (str(p), p.stat().st_mtime_ns, physics_only)
     with _lock:
