@@ -138,3 +138,12 @@ def test_check_variants_with_an_empty_plot_is_refused(capsys) -> None:
     assert main(["check", "--variants", "2", "--plot", ""]) == 2
     assert "plot path is empty" in _error_line(capsys)
 
+
+def test_a_width_out_of_range_says_so_with_its_bounds(capsys) -> None:
+    argv = ["hold", "--headless", "--duration", "0.1", "--record", "x.mp4", "--width"]
+    assert main([*argv, "9" * 20]) == 2
+    line = _error_line(capsys)
+    assert "width = an integer of 20 digits is out of range" in line
+    assert "from 16 to 4096" in line
+    assert main([*argv, "17"]) == 2
+    assert "width = 17 pixels is odd" in _error_line(capsys)

@@ -184,8 +184,12 @@ def check_count(
     if not ok:
         raise error(f"{what} = {shown(value)} is not a whole number; expected {expected}")
     n = int(value)  # type: ignore[arg-type]
-    if n < minimum or (maximum is not None and n > maximum) or (even and n % 2):
-        raise error(f"{what} = {shown(n)}{unit} is invalid; expected {expected}")
+    text = shown(n)
+    number = text + unit if text == str(n) else text  # not "an integer of 20 digits pixels"
+    if n < minimum or (maximum is not None and n > maximum):
+        raise error(f"{what} = {number} is out of range; expected {expected}")
+    if even and n % 2:
+        raise error(f"{what} = {number} is odd; expected {expected}")
     return n
 
 
