@@ -30,13 +30,13 @@ def _error_line(capsys) -> str:
 # ---------------------------------------------------------------------------- the shared check
 @pytest.mark.parametrize("path", ["", "   ", LONG_NAME + ".png", LONG_PATH + ".png"])
 def test_an_output_path_that_cannot_be_a_file_is_refused(path: str) -> None:
-    with pytest.raises(OutputPathError, match="empty|bytes long"):
+    with pytest.raises(OutputPathError, match=r"empty|bytes long"):
         check_output_path(path, what="plot", suffixes=(".png",))
 
 
 def test_a_folder_name_too_long_is_refused_before_any_stat(tmp_path: Path) -> None:
     p = tmp_path / LONG_NAME / "x.png"
-    with pytest.raises(OutputPathError, match="a folder name in the plot path .* 300 bytes"):
+    with pytest.raises(OutputPathError, match=r"a folder name in the plot path .* 300 bytes"):
         check_output_path(p, what="plot")
     with pytest.raises(SettingError, match="300 bytes long"):
         check_path_length(p, "plot")
