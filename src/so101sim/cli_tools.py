@@ -173,6 +173,11 @@ def cmd_record(args: argparse.Namespace) -> int:
     from .handin import run_script  # imported here: it imports MuJoCo
     from .recording import VideoSettings
 
+    if args.record is not None:  # the recording options' --record: the video is -o here
+        raise RecordingError(
+            f"--record {args.record!r} is not an option of so101sim record; expected the "
+            "video's path as -o/--output"
+        )
     script_args = list(args.script_args)
     video = {name: getattr(args, name) for name in ("width", "height", "fps", "camera")}
     video |= {"quality": args.quality, "caption": args.caption, "title": args.title}
