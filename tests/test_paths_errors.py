@@ -147,3 +147,18 @@ def test_a_width_out_of_range_says_so_with_its_bounds(capsys) -> None:
     assert "from 16 to 4096" in line
     assert main([*argv, "17"]) == 2
     assert "width = 17 pixels is odd" in _error_line(capsys)
+
+
+# ---------------------------------------------------------------------------- empty names
+def test_teleop_refuses_an_empty_calibration_id_or_port(capsys) -> None:
+    from so101sim.errors import CalibrationError, LeaderError
+    from so101sim.teleop import FeetechLeaderBus, find_calibration
+
+    with pytest.raises(CalibrationError, match="calibration file path is empty"):
+        find_calibration("")  # was: "" taken for no file, the default calibration used
+    with pytest.raises(CalibrationError, match="leader id is empty"):
+        find_calibration(None, " ")
+    with pytest.raises(LeaderError, match="serial port path is empty"):
+        FeetechLeaderBus("", sdk=object())
+    assert main(["teleop", "--headless", "--port", "/x", "--calibration", ""]) == 2
+    assert "calibration file path is empty" in _error_line(capsys)
