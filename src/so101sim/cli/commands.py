@@ -71,7 +71,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     names = ("max_effort", "max_saturation", "max_tracking_error", "limit_margin")
     # a bad threshold is a SettingError: main() reports it
     thresholds = Thresholds(**{name: getattr(args, name) for name in names})
-    motion = args.motion if args.motion else lab_motion_path()
+    motion = args.motion if args.motion is not None else lab_motion_path()
     if args.variants is not None:
         return _check_variants(args, motion, thresholds)
     if any(getattr(args, o) is not None for o in ("seed", "threads", "plot", "ray")) or args.force:
@@ -93,7 +93,7 @@ def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> i
 
     settings = {"model": args.model, "thresholds": thresholds, "strict": args.strict}
     seed = 0 if args.seed is None else args.seed
-    if args.plot:
+    if args.plot is not None:
         pv.check_plot_path(args.plot, force=args.force)  # before anything runs
     if args.ray is None:
         report = pv.check_variants(
@@ -104,10 +104,10 @@ def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> i
 
         job = pv.make_job(motion, count=args.variants, seed=seed, **settings)
         report = pv.summarize(job, run_on_ray(job, args.ray))
-    if args.plot:
+    if args.plot is not None:
         pv.plot_variants(report, args.plot, force=True)
     print(json.dumps(report.to_dict(), indent=2) if args.json else pv.format_variants(report))
-    if args.plot and not args.json:
+    if args.plot is not None and not args.json:
         print(f"wrote {args.plot}")
     return 0 if report.passed == len(report.outcomes) else 1
 

@@ -88,7 +88,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     # the run's model first: the loader plans the tip moves on it, and the run reuses them
     model = run_model(args.model, headless=args.headless, outputs=_outputs(args))
     with output_hint(args.motion):
-        motion = load_motion(args.motion if args.motion else lab_motion_path(), model=model)
+        motion = load_motion(
+            args.motion if args.motion is not None else lab_motion_path(), model=model
+        )
     return _run(
         args, motion.steps, motion.start, strict=args.strict, model=model, known=motion.tip_plans
     )

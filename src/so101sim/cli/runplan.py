@@ -51,7 +51,8 @@ class Outputs:
     @property
     def wanted(self) -> bool:
         """True when at least one file is asked for."""
-        return bool(self.video or self.plot or self.log)
+        # an empty path is asked for too (and refused by the output check), not "no file"
+        return any(p is not None for p in (self.video, self.plot, self.log))
 
 
 def check_strict(

@@ -209,6 +209,11 @@ def cmd_record(args: argparse.Namespace) -> int:
 def record_output(args: argparse.Namespace) -> str | None:
     """``record``'s video: ``-o PATH`` or ``--record PATH`` (the same option under the name
     ``run`` and ``hold`` use); one of them is needed, unless ``--web`` shows the script."""
+    from ..validation import check_path_text
+
+    for name in ("output", "record"):  # an empty name is no path (not "no video")
+        if getattr(args, name) is not None:
+            check_path_text(getattr(args, name), "video", error=RecordingError)
     if args.output and args.record and Path(args.output) != Path(args.record):
         raise RecordingError(
             f"-o {args.output} and --record {args.record} name two videos; expected one "

@@ -37,6 +37,7 @@ from ..errors import So101SimError, ViewerError
 from ..recording import Recorder, VideoSettings
 from ..recording.inline import RecordedFiles
 from ..sim.simulation import Observer, Simulation, Trace
+from ..validation import check_input_file, check_output_path
 from .simclock import SimClock, simulated_time
 
 PathArg = str | os.PathLike[str] | None
@@ -354,6 +355,22 @@ def _script_environment(path: Path, args: Sequence[str]) -> Iterator[None]:
         sys.argv, sys.path[:] = saved_argv, saved_path
 
 
+def _check_outputs(video: PathArg, options: dict[str, Any]) -> None:
+    """The outputs of a script run, checked as :class:`Recorder` will check them."""
+    from ..recording.paths import check_distinct
+    from ..recording.plot import PLOT_SUFFIXES
+    from ..recording.video import VIDEO_SUFFIXES
+
+    force = bool(options.get("force", False))
+    plot, log = options.get("plot"), options.get("log")
+    check_output_path(video, force=force, what="video", suffixes=VIDEO_SUFFIXES)
+    if plot is not None:
+        check_output_path(plot, force=force, what="plot", suffixes=PLOT_SUFFIXES)
+    if log is not None:
+        check_output_path(log, force=force, what="log")
+    check_distinct(video, plot, log)
+
+
 def run_script(
     script: str | os.PathLike[str],
     args: Sequence[str],
@@ -378,10 +395,13 @@ def run_script(
 
     Raises:
         NothingRecordedError: the script ended without opening a viewer.
+        SettingError: ``script`` is not a readable file (missing, a folder, a device, ...).
+        OutputPathError: an output (``video``, ``plot``, ``log``) cannot be written.
     """
-    path = Path(script)
-    if not path.is_file():
-        raise So101SimError(f"script {str(path)!r} does not exist; expected a Python file")
+    # what the script is when not a file (a folder, /dev/zero), and every output, checked
+    # before the script runs (the recording opens only when the script opens its viewer)
+    path = check_input_file(script, "script", expected="a Python file (the script to run)")
+    _check_outputs(video, options)
     clock = SimClock()
     session = _Session(clock, video, options, live)
     status, message = 0, ""

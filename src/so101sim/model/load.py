@@ -20,6 +20,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..units import JOINT_NAMES, ArmUnits
+from ..validation import check_input_file
 from .cache import load_or_compile
 
 log = logging.getLogger(__name__)
@@ -65,19 +66,13 @@ def load_model(
         ModelError: the file does not exist, does not compile, or lacks the SO-101 joints.
         ProfileError: ``arm`` names no profile or holds invalid values.
     """
-    p = Path(path).expanduser() if path is not None else scene_path()
+    if path is None:
+        p = scene_path()
+    else:  # empty, too long, missing, a folder, a device: one line saying so, no OSError
+        expected = f"an MJCF file such as the shipped {str(scene_path())!r}"
+        p = check_input_file(path, "model file", expected=expected, error=ModelError)
     if arm is not None:
         return _load_with_arm(p, arm)
-    if p.exists() and not p.is_file():
-        raise ModelError(
-            f"model file {str(p)!r} is not a regular file; expected an MJCF file such as the "
-            f"shipped {str(scene_path())!r}"
-        )
-    if not p.is_file():
-        raise ModelError(
-            f"model file {str(p)!r} does not exist; expected an MJCF file such as the shipped "
-            f"{str(scene_path())!r}"
-        )
     p = p.resolve()
     key = (str(p), p.stat().st_mtime_ns, physics_only)
     with _lock:

@@ -57,6 +57,7 @@ the line scan and the tip moves are in the two modules named above.)
 
 from __future__ import annotations
 
+import os
 import reprlib
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
@@ -459,6 +460,10 @@ def load_motion(
             folder, a device such as ``/dev/zero``, a pipe), is larger than 1 MiB, is not
             UTF-8, is not valid TOML, or says something invalid.
     """
+    if not isinstance(path, str | os.PathLike) or not str(path).strip():
+        raise MotionFileError(
+            repr(path), 0, "the motion file path is empty; expected a TOML motion file (text)"
+        )
     p = Path(path)
     try:
         text = read_text_limited(p, MAX_FILE_BYTES)

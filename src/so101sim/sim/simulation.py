@@ -460,10 +460,18 @@ class Simulation:
             DurationError, SettingError: a bad duration, path or profile.
         """
         from ..kinematics import plan_line, solve_ik  # imported here: only tip moves need it
+        from ..kinematics.paths import MAX_LINE_STEPS
 
         _ = self.kinematics  # held here, so that the planner's calls share it
         check_choice(path, "path", ("line", "joint"))
         n = steps_for(_required(duration), self.timestep, maximum=MAX_MOVE_DURATION_S)
+        if path == "line" and n > MAX_LINE_STEPS:  # a model with a very short timestep
+            raise SettingError(
+                f"a straight tip line of {duration:g} s is {n} physics steps of "
+                f"{self.timestep * 1000:g} ms; expected at most {MAX_LINE_STEPS} steps "
+                f"({MAX_LINE_STEPS * self.timestep:g} s with this model): split it into "
+                "shorter lines, or use path='joint'"
+            )
         start = self.commanded_array()
         if path == "joint":
             goal = solve_ik(tip, pitch=pitch, roll=roll, initial=start, model=self.model)
