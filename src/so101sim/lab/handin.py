@@ -363,7 +363,8 @@ def _check_outputs(video: PathArg, options: dict[str, Any]) -> None:
 
     force = bool(options.get("force", False))
     plot, log = options.get("plot"), options.get("log")
-    check_output_path(video, force=force, what="video", suffixes=VIDEO_SUFFIXES)
+    if video is not None:  # None: the script is only shown (record --web)
+        check_output_path(video, force=force, what="video", suffixes=VIDEO_SUFFIXES)
     if plot is not None:
         check_output_path(plot, force=force, what="plot", suffixes=PLOT_SUFFIXES)
     if log is not None:
