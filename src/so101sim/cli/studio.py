@@ -59,6 +59,15 @@ def in_notebook() -> bool:
     return False
 
 
+def _stopped(exc: BaseException) -> bool:
+    """Whether ``exc`` is Ctrl-C (or SIGTERM/SIGHUP) ending a studio: the signal's
+    KeyboardInterrupt, or the error it became inside a library call it interrupted (viser's
+    threads and locks, a C call's argument conversion)."""
+    from .output import SIGNALS
+
+    return isinstance(exc, KeyboardInterrupt) or SIGNALS.raised is not None
+
+
 def announce(url: str, what: str = "the studio") -> None:
     """Print the page's URL (a link in a notebook)."""
     if in_notebook():
@@ -99,7 +108,9 @@ def _linger(studio: Studio, seconds: float) -> None:
         end = time.monotonic() + seconds
         while (left := end - time.monotonic()) > 0:
             time.sleep(min(left, 0.2))
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, Exception) as exc:  # Ctrl-C is how a studio is stopped
+        if not _stopped(exc):
+            raise
         print("stopped")
 
 
@@ -118,7 +129,9 @@ def view_web(args: argparse.Namespace) -> int:
             observer = StudioObserver(studio, Pacer(1.0))
             while True:
                 sim.hold(1.0, observers=[observer], phase="hold")
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, Exception) as exc:  # Ctrl-C is how a studio is stopped
+        if not _stopped(exc):
+            raise
         print("stopped")
     return 0
 
@@ -194,7 +207,9 @@ def pose_web(args: argparse.Namespace) -> int:
                     + (f"\ntip:    {change.tip.format()}" if change.tip is not None else ""),
                     flush=True,
                 )
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, Exception) as exc:  # Ctrl-C is how a studio is stopped
+        if not _stopped(exc):
+            raise
         print("stopped")
     return 0
 
