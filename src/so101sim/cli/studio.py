@@ -83,7 +83,11 @@ def _studio(model: Any, args: argparse.Namespace, **kwargs: Any) -> Studio:
     from ..studio import Studio
 
     studio = Studio(model, host=args.host, port=args.port, **kwargs)
-    announce(studio.url)
+    try:
+        announce(studio.url)
+    except BaseException:  # Ctrl-C while the URL is printed: nothing left serving
+        studio.close()
+        raise
     return studio
 
 
@@ -123,9 +127,8 @@ def view_web(args: argparse.Namespace) -> int:
 
     model = load_model(args.model)
     sim = Simulation(model)
-    studio = _studio(sim.model, args)
     try:  # from the URL's announcement on, Ctrl-C is the way to stop: it ends with status 0
-        with _serving(studio):
+        with _serving(_studio(sim.model, args)) as studio:
             observer = StudioObserver(studio, Pacer(1.0))
             while True:
                 sim.hold(1.0, observers=[observer], phase="hold")
