@@ -67,3 +67,45 @@ def test_a_model_whose_forces_do_not_follow_from_the_states_is_watched_per_step(
     m = copy.copy(load_model())
     m.actuator_gaintype[0] = 2  # user-defined gain: nothing to vectorise
     assert not vectorisable(m)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_screen_never_clears_a_pair_that_touches(seed):
+    """The screen's promise, checked against MuJoCo's own collision detection: at random arm
+    positions, a pair of bodies whose gap exceeds its bound (static levers, and the levers
+    measured at the screened position grown by (e^s - 1) / s) does not touch at a nearby
+    position; and every pair MuJoCo reports is one of the screen's pairs."""
+    import mujoco
+
+    from so101sim.preflight import states
+
+    sim = Simulation()
+    m = sim.model
+    rec = StateRecorder(m)
+    scr = states._screen(m)
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(seed)
+    lo, hi = m.jnt_range[:, 0], m.jnt_range[:, 1]
+    cleared = touching = 0
+    for _ in range(150):
+        qa = rng.uniform(lo, hi)
+        gap, lever = rec._gaps(scr, qa, 0.0)
+        step = rng.normal(size=m.nv) * rng.choice([0.01, 0.05, 0.2])
+        qb = np.clip(qa + step, lo, hi)
+        delta = np.abs(qb - qa)
+        static = delta @ scr.lever.T
+        turned = delta @ scr.moves_t
+        grown = np.where(turned < 1e-12, 1.0, np.expm1(turned) / np.maximum(turned, 1e-300))
+        dynamic = (delta @ lever) * grown
+        d.qpos[:] = qb
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_collision(m, d)
+        bodies = m.geom_bodyid[d.contact.geom[: d.ncon]]
+        pair = scr.pair_of[bodies[:, 0], bodies[:, 1]]
+        assert (pair >= 0).all()  # MuJoCo's pairs are among the screen's
+        touching += d.ncon > 0
+        for bound in (static, dynamic):
+            clear = bound < gap - 1e-6
+            cleared += int(clear.sum())
+            assert not clear[pair].any()  # a cleared pair never touches
+    assert touching > 0 and cleared > 0  # both cases were met

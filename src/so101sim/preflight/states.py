@@ -14,17 +14,22 @@ the first step, one after each step), for :func:`~so101sim.preflight.measure.col
   step with the step recorder, as before);
 * **contacts**: the contacts of step i are those of the positions before it (MuJoCo detects
   them before it integrates). A scratch copy of the model whose margins are widened by
-  :data:`SCREEN_M` tells, at one position, how far every pair of geoms is from touching; no
-  point of a geom moves further in a step than the joint velocities times the longest lever
-  (bounded from the model's body and geom offsets), so a position clear by a gap clears the
-  steps that follow until the sum of their moves reaches half the gap. Only positions that
-  may touch are tested with the model itself (``mj_kinematics`` + ``mj_collision`` on scratch
-  data): the same contacts, bit for bit, as the step itself found.
+  :data:`SCREEN_M` tells, at one position, how far each pair of bodies that can touch
+  (:func:`_body_pairs`: MuJoCo's filters, a superset) is from touching: the widened
+  contacts' distances, else at least :data:`SCREEN_M` and at least the geoms' bounding
+  spheres' distance. A pair's geoms move towards each other by at most each joint's travel
+  since that position (the recorded angles' difference) times a lever (the farthest geom
+  point from the joint's anchor; joints above both bodies move them together and do not
+  count): the lever bounded over every configuration from the model's offsets, or (hinges
+  only) measured at the screened position and grown by ``(e^s - 1) / s`` for ``s`` radians
+  turned in all. So a position clears the positions that follow until some pair's bound
+  reaches its gap. Only positions that may touch are tested with the model itself
+  (``mj_kinematics`` + ``mj_collision`` on scratch data): the same contacts, bit for bit,
+  as the step itself found.
 """
 
 from __future__ import annotations
 
-import bisect
 import copy
 import threading
 import weakref
@@ -35,8 +40,10 @@ import numpy as np
 from ..model.load import arm_index
 from ..sim.stepping import Observer, Trace
 
-SCREEN_M = 0.003
+SCREEN_M = 0.04
 """How much wider than the model's the screening copy's margins are (metres)."""
+_TOLERANCE_M = 1e-6
+"""Metres a screened gap must exceed the geoms' possible moves by (rounding in the distances)."""
 
 _EXACT = (
     mujoco.mjtIntegrator.mjINT_EULER,
@@ -52,6 +59,11 @@ _SYNCED = (
 )  # fmt: skip
 """Model fields a user may change after load that collision detection reads: copied into the
 screening model before each use, so it never goes stale."""
+_LEVER_FIELDS = (
+    "geom_pos", "geom_rbound", "geom_contype", "geom_conaffinity", "body_pos", "jnt_pos",
+    "pair_geom1", "pair_geom2",
+)  # fmt: skip
+"""Model fields the body pairs and their levers come from: redone when one changes."""
 
 
 def vectorisable(m: mujoco.MjModel) -> bool:
@@ -111,13 +123,18 @@ def actuator_forces(
 
 class _Screen:
     """One thread's scratch copies for a model: the widened model and its data, the model's
-    own scratch data, and each degree of freedom's lever (metres per radian, 1 for a slide)."""
+    own scratch data, and the body pairs that can touch with their levers
+    (:func:`_body_pairs`, redone when the fields they come from change)."""
 
     def __init__(self, m: mujoco.MjModel) -> None:
         self.wide = copy.copy(m)
         self.wide_data = mujoco.MjData(self.wide)
         self.data = mujoco.MjData(m)
-        self.lever = _levers(m)
+        hinge = np.isin(m.jnt_type, [mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE])
+        self.angle_dof = m.jnt_dofadr[hinge]  # dofs whose qpos is their coordinate
+        self.angle_col = m.jnt_qposadr[hinge]
+        self.other_dof = np.setdiff1d(np.arange(m.nv), self.angle_dof)  # ball, free
+        self._key = b""
 
     def sync(self, m: mujoco.MjModel) -> None:
         w = self.wide
@@ -127,6 +144,40 @@ class _Screen:
         w.pair_margin[:] = m.pair_margin + SCREEN_M
         w.opt.disableflags, w.opt.enableflags = m.opt.disableflags, m.opt.enableflags
         w.opt.o_margin = m.opt.o_margin + SCREEN_M
+        key = b"".join(getattr(m, name).tobytes() for name in _LEVER_FIELDS)
+        key += int(m.opt.disableflags).to_bytes(4, "little")
+        if key != self._key:
+            self._key = key
+            self.pairs, self.lever, self.side = _body_pairs(m)
+            self.pair_of = np.full((m.nbody, m.nbody), -1)
+            for p, (b1, b2) in enumerate(self.pairs):
+                self.pair_of[b1, b2] = self.pair_of[b2, b1] = p
+            # the levers of the positions screened (hinges only): per body, its geoms
+            self.hinges = bool((m.jnt_type == mujoco.mjtJoint.mjJNT_HINGE).all())
+            geoms = np.flatnonzero((m.geom_contype != 0) | (m.geom_conaffinity != 0))
+            geoms = np.union1d(geoms, np.concatenate([m.pair_geom1, m.pair_geom2])).astype(int)
+            self.geoms = geoms[np.argsort(m.geom_bodyid[geoms], kind="stable")]
+            gb = m.geom_bodyid[self.geoms]
+            self.geom_starts = np.flatnonzero(np.r_[True, gb[1:] != gb[:-1]])
+            self.geom_bodies = gb[self.geom_starts]
+            self.moves = self.side >= 0  # (P, nv): the dofs that move a pair's bodies apart
+            at = np.arange(m.nv)[None] * m.nbody + np.maximum(self.side, 0)
+            self.reach_at = at[:, self.angle_dof].T  # (hinges, P) into (nv, nbody) ravelled
+            self.moves_t = self.moves[:, self.angle_dof].T.astype(float)
+            # every geom pair of every body pair, for a lower bound from bounding spheres
+            on = [self.geoms[gb == b] for b in range(m.nbody)]
+            g1, g2, gp = [], [], []
+            for p, (b1, b2) in enumerate(self.pairs):
+                for a in on[b1]:
+                    for b in on[b2]:
+                        g1.append(a), g2.append(b), gp.append(p)
+            gp_ = np.array(gp, int)
+            starts = np.flatnonzero(np.r_[True, gp_[1:] != gp_[:-1]]) if gp else gp_
+            self.sphere = (np.array(g1, int), np.array(g2, int), starts)
+            self.plane = m.geom_type[self.sphere[0]] == mujoco.mjtGeom.mjGEOM_PLANE
+            # a plane on a moving body, or flexes: no bound here, every position is tested
+            plane = (m.geom_type == mujoco.mjtGeom.mjGEOM_PLANE) & (m.geom_bodyid > 0)
+            self.usable = not plane.any() and not getattr(m, "nflex", 0)
 
 
 _local = threading.local()
@@ -143,29 +194,85 @@ def _screen(m: mujoco.MjModel) -> _Screen:
     return s
 
 
-def _levers(m: mujoco.MjModel) -> np.ndarray:
-    """Per degree of freedom, the farthest any point of a geom it moves can be from its axis
-    (a bound that holds in every configuration: the sum of the offsets down the tree)."""
-    reach = np.zeros(m.nbody)  # farthest geom point below each body, from the body's origin
-    for g in range(m.ngeom):
+def _body_pairs(m: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs of bodies whose geoms MuJoCo may test for contact (``(P, 2)``: a superset of
+    what its filters let through: contype/conaffinity, same weld, parent and child, plus the
+    explicit pairs) and, per pair and degree of freedom, the lever (``(P, nv)``): how far the
+    two bodies' geoms can move towards each other per radian (metre, for a slide) of that
+    degree of freedom, in every configuration. Degrees of freedom above both bodies move them
+    together and do not count; for the others, the lever is the distance from the joint's
+    anchor down the tree to the farthest point of the body's geoms (offsets summed). Also
+    ``(P, nv)``: which body of the pair each degree of freedom moves (-1: neither, or both)."""
+    col = np.flatnonzero((m.geom_contype != 0) | (m.geom_conaffinity != 0))
+    reach = np.zeros(m.nbody)  # farthest collision-geom point from each body's origin
+    for g in np.union1d(col, np.concatenate([m.pair_geom1, m.pair_geom2])).astype(int):
         b = m.geom_bodyid[g]
-        reach[b] = max(reach[b], np.linalg.norm(m.geom_pos[g]) + m.geom_rbound[g])
-    for b in range(m.nbody - 1, 0, -1):  # children come after their parents
-        p = m.body_parentid[b]
-        if p:
-            reach[p] = max(reach[p], np.linalg.norm(m.body_pos[b]) + reach[b])
-    lever = np.ones(m.nv)
-    for j in range(m.njnt):
-        adr, b = m.jnt_dofadr[j], m.jnt_bodyid[j]
-        r = np.linalg.norm(m.jnt_pos[j]) + reach[b]
-        t = m.jnt_type[j]
-        if t == mujoco.mjtJoint.mjJNT_HINGE:
-            lever[adr] = r
-        elif t == mujoco.mjtJoint.mjJNT_BALL:
-            lever[adr : adr + 3] = r
-        elif t == mujoco.mjtJoint.mjJNT_FREE:
-            lever[adr + 3 : adr + 6] = r
-    return lever
+        reach[b] = max(reach[b], float(np.linalg.norm(m.geom_pos[g])) + m.geom_rbound[g])
+    chain = [[b] for b in range(m.nbody)]  # each body and its ancestors, the body first
+    for b in range(1, m.nbody):
+        chain[b] = [b, *chain[m.body_parentid[b]]] if m.body_parentid[b] else [b, 0]
+    weld = m.body_weldid
+    weldparent = weld[m.body_parentid[weld]]
+    filterparent = not m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_FILTERPARENT)
+    found = set()
+    for i, g1 in enumerate(col):
+        for g2 in col[i + 1 :]:
+            b1, b2 = sorted((int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])))
+            w1, w2 = weld[b1], weld[b2]
+            if w1 == w2:
+                continue
+            if filterparent and w1 and w2 and (w1 == weldparent[b2] or w2 == weldparent[b1]):
+                continue
+            if m.geom_contype[g1] & m.geom_conaffinity[g2] or (
+                m.geom_contype[g2] & m.geom_conaffinity[g1]
+            ):
+                found.add((b1, b2))
+    for k in range(m.npair):
+        b1, b2 = sorted((int(m.geom_bodyid[m.pair_geom1[k]]), int(m.geom_bodyid[m.pair_geom2[k]])))
+        if b1 != b2:
+            found.add((b1, b2))
+    pairs = np.array(sorted(found), dtype=int).reshape(-1, 2)
+    lever = np.zeros((len(pairs), m.nv))
+    side = np.full((len(pairs), m.nv), -1)  # the body of the pair each dof moves, or -1
+    dof_body = m.jnt_bodyid[m.dof_jntid]
+    for p, (b1, b2) in enumerate(pairs):
+        for d in range(m.nv):
+            in1, in2 = dof_body[d] in chain[b1], dof_body[d] in chain[b2]
+            if in1 != in2:
+                side[p, d] = b1 if in1 else b2
+    for p, (b1, b2) in enumerate(pairs):
+        for b, other in ((b1, b2), (b2, b1)):
+            shared = set(chain[other])
+            below = 0.0  # from the current body's origin down to b's farthest geom point
+            path = chain[b]
+            for n, a in enumerate(path):
+                if a in shared:
+                    break
+                for j in range(m.body_jntadr[a], m.body_jntadr[a] + m.body_jntnum[a]):
+                    _add_lever(m, lever[p], j, a, path[n - 1] if n else -1, below, reach[b])
+                if n:
+                    below += float(np.linalg.norm(m.body_pos[path[n - 1]]))
+    return pairs, lever, side
+
+
+def _add_lever(
+    m: mujoco.MjModel, row: np.ndarray, j: int, body: int, child: int, below: float, reach: float
+) -> None:
+    """Add joint ``j``'s lever (on ``body``, whose ``child`` leads down to the geoms:
+    ``below`` past that child's origin, then ``reach``) to ``row``."""
+    anchor = m.jnt_pos[j]
+    to_child = m.body_pos[child] if child >= 0 else np.zeros(3)
+    r = float(np.linalg.norm(to_child - anchor)) + below + reach
+    adr, t = m.jnt_dofadr[j], m.jnt_type[j]
+    if t == mujoco.mjtJoint.mjJNT_HINGE:
+        row[adr] += r
+    elif t == mujoco.mjtJoint.mjJNT_SLIDE:
+        row[adr] += 1.0
+    elif t == mujoco.mjtJoint.mjJNT_BALL:
+        row[adr : adr + 3] += r
+    else:  # free: three translations, three rotations about the body's origin
+        row[adr : adr + 3] += 1.0
+        row[adr + 3 : adr + 6] += float(np.linalg.norm(to_child)) + below + reach
 
 
 class StateRecorder(Observer):
@@ -233,20 +340,32 @@ class StateRecorder(Observer):
         """The contacts at each position ``q[j]`` (stamped ``times[j]``), testing with the
         model only the positions the screen cannot clear."""
         m, scr = self.m, _screen(self.m)
-        speed = np.maximum(np.abs(v_before), np.abs(v_after)) @ scr.lever
-        safety = 1.01 if m.opt.integrator in _EXACT else 2.0
-        moved = np.concatenate([[0.0], np.cumsum(safety * self.dt * speed)]).tolist()
+        for data in (scr.wide_data, scr.data):
+            data.mocap_pos[:], data.mocap_quat[:] = self._mocap
         top = max(float(m.geom_margin.max(initial=0.0)), float(m.pair_margin.max(initial=0.0)))
         if m.opt.enableflags & int(mujoco.mjtEnableBit.mjENBL_OVERRIDE):
             top = max(top, float(m.opt.o_margin))
-        for data in (scr.wide_data, scr.data):
-            data.mocap_pos[:], data.mocap_quat[:] = self._mocap
+        # each degree of freedom's travel from one position to another: |difference| of the
+        # angles (hinges, slides); the sum of the step moves bounded by the velocities (others)
+        angles = q[:, scr.angle_col]
+        summed = None
+        if scr.other_dof.size:
+            safety = 1.01 if m.opt.integrator in _EXACT else 2.0
+            o = scr.other_dof
+            speed = np.maximum(np.abs(v_before[:, o]), np.abs(v_after[:, o]))
+            summed = np.vstack([np.zeros((1, o.size)), np.cumsum(safety * self.dt * speed, 0)])
+        lever_a = scr.lever[:, scr.angle_dof].T  # (hinges, P)
+        lever_o = scr.lever[:, scr.other_dof].T
+        moves = scr.moves_t
         j, k, touching = 0, len(q), False
+        window = 64
         while j < k:
             # while touching, the next step likely touches too: no screening there
-            gap = 0.0 if touching else self._gap(scr, q[j], top)
-            if gap <= 0.0:  # may touch here: the model's own collision detection
-                d = scr.data
+            gap = lever = None
+            if not touching and scr.usable:
+                gap, lever = self._gaps(scr, q[j], top)
+            if gap is None or (gap.size and gap.min() <= _TOLERANCE_M):
+                d = scr.data  # may touch here: the model's own collision detection
                 d.qpos[:] = q[j]
                 mujoco.mj_kinematics(m, d)
                 mujoco.mj_collision(m, d)
@@ -254,20 +373,71 @@ class StateRecorder(Observer):
                 touching = d.ncon > 0
                 j += 1
                 continue
-            # clear until the geoms may have closed the gap (each moves at most `moved`)
-            j = max(j + 1, bisect.bisect_left(moved, moved[j] + 0.5 * gap))
+            # clear until some pair's geoms may have closed their gap
+            gap = gap - _TOLERANCE_M
+            start = j
+            while True:
+                stop = min(k, j + window)
+                delta = np.abs(angles[j + 1 : stop] - angles[start])
+                moved = delta @ lever_a
+                if summed is not None:
+                    moved += (summed[j + 1 : stop] - summed[start]) @ lever_o
+                elif lever is not None:  # all hinges: the levers where the screen was
+                    turned = delta @ moves  # (w, P): radians turned in all, s
+                    grown = np.expm1(turned) / np.maximum(turned, 1e-300)  # (e^s - 1) / s
+                    grown[turned < 1e-12] = 1.0
+                    moved = np.minimum(moved, (delta @ lever) * grown)
+                hit = np.flatnonzero((moved >= gap).any(axis=1))
+                if hit.size:
+                    j = j + 1 + int(hit[0])
+                    window = max(8, window // 2)
+                    break
+                j = stop - 1
+                window *= 2
+                if stop == k:
+                    j = k
+                    break
 
-    @staticmethod
-    def _gap(scr: _Screen, qpos: np.ndarray, top: float) -> float:
-        """How far, at ``qpos``, the closest pair of geoms is from touching (at most
-        :data:`SCREEN_M`); <= 0: it may touch."""
+    def _gaps(
+        self, scr: _Screen, qpos: np.ndarray, top: float
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Per body pair of :func:`_body_pairs`, how far at ``qpos`` its geoms are from
+        touching (at most :data:`SCREEN_M`); <= 0: they may touch."""
         w, d = scr.wide, scr.wide_data
         d.qpos[:] = qpos
         mujoco.mj_kinematics(w, d)
         mujoco.mj_collision(w, d)
-        if not d.ncon:
-            return SCREEN_M
-        return min(SCREEN_M, float(d.contact.dist[: d.ncon].min()) - top)
+        m = self.m
+        # unreported pairs are at least SCREEN_M apart, and at least their bounding spheres'
+        # distance (MuJoCo's own bound: a geom's points lie within geom_rbound of its centre)
+        g1, g2, starts = scr.sphere
+        c1, c2 = d.geom_xpos[g1], d.geom_xpos[g2]
+        apart = np.linalg.norm(c1 - c2, axis=1) - m.geom_rbound[g1]
+        if scr.plane.any():  # a plane (on the world): the height above it
+            k = scr.plane
+            normal = d.geom_xmat[g1[k]].reshape(-1, 3, 3)[:, :, 2]
+            apart[k] = np.einsum("ij,ij->i", c2[k] - c1[k], normal)
+        apart -= m.geom_rbound[g2]
+        gap = np.full(len(scr.pairs), SCREEN_M)
+        if len(starts):  # every pair has a geom pair (it was found from one)
+            gap = np.maximum(np.minimum.reduceat(apart, starts) - top, SCREEN_M)
+        lever = None
+        if scr.hinges:  # per dof and body: the farthest geom point from the joint's anchor
+            anchor = d.xanchor[m.dof_jntid]
+            far = np.linalg.norm(d.geom_xpos[scr.geoms][None] - anchor[:, None], axis=2)
+            far += m.geom_rbound[scr.geoms]
+            reach = np.zeros((m.nv, m.nbody))
+            reach[:, scr.geom_bodies] = np.maximum.reduceat(far, scr.geom_starts, axis=1)
+            lever = reach.ravel()[scr.reach_at] * scr.moves_t  # (hinges, P)
+        if d.ncon:
+            con = d.contact
+            bodies = self.m.geom_bodyid[con.geom[: d.ncon]]
+            pair = scr.pair_of[bodies[:, 0], bodies[:, 1]]
+            if (pair < 0).any():  # a pair the filters were thought to drop: test them all
+                gap[:] = 0.0
+            else:
+                np.minimum.at(gap, pair, con.dist[: d.ncon] - top)
+        return gap, lever
 
 
 __all__ = ["SCREEN_M", "StateRecorder", "actuator_forces", "vectorisable"]
