@@ -18,12 +18,12 @@ the first step, one after each step), for :func:`~so101sim.preflight.measure.col
   (:func:`_body_pairs`: MuJoCo's filters, a superset) is from touching: the widened
   contacts' distances, else at least :data:`SCREEN_M` and at least the geoms' bounding
   spheres' distance. A pair's geoms move towards each other by at most each joint's travel
-  since that position (the recorded angles' difference) times a lever (the farthest geom
-  point from the joint's anchor; joints above both bodies move them together and do not
-  count): the lever bounded over every configuration from the model's offsets, or (hinges
-  only) measured at the screened position and grown by ``(e^s - 1) / s`` for ``s`` radians
-  turned in all. So a position clears the positions that follow until some pair's bound
-  reaches its gap. Only positions that may touch are tested with the model itself
+  (the recorded angles' differences, summed step by step) times a lever bounded over every
+  configuration from the model's offsets (the farthest geom point from the joint's anchor;
+  joints above both bodies move them together and do not count). So a position clears the
+  positions that follow until some pair's bound
+  reaches its gap (the bound is symmetric: a screen ahead clears back towards the last one
+  too, so the screens leapfrog). Only positions that may touch are tested with the model itself
   (``mj_kinematics`` + ``mj_collision`` on scratch data): the same contacts, bit for bit,
   as the step itself found.
 """
@@ -77,11 +77,15 @@ def vectorisable(m: mujoco.MjModel) -> bool:
     checks = [
         (m.actuator_dyntype[act] == mujoco.mjtDyn.mjDYN_NONE).all(),
         (m.actuator_gaintype[act] == mujoco.mjtGain.mjGAIN_FIXED).all(),
-        np.isin(
-            m.actuator_biastype[act], [mujoco.mjtBias.mjBIAS_NONE, mujoco.mjtBias.mjBIAS_AFFINE]
-        ).all(),
+        all(
+            b in (mujoco.mjtBias.mjBIAS_NONE, mujoco.mjtBias.mjBIAS_AFFINE)
+            for b in m.actuator_biastype[act].tolist()
+        ),
         (m.actuator_trntype[act] == mujoco.mjtTrn.mjTRN_JOINT).all(),
-        np.isin(m.jnt_type[jnt], [mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE]).all(),
+        all(
+            t in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)
+            for t in m.jnt_type[jnt].tolist()
+        ),
     ]
     for name in ("actuator_damping", "actuator_armature", "actuator_dampingpoly"):
         field = getattr(m, name, None)
@@ -148,24 +152,14 @@ class _Screen:
         key += int(m.opt.disableflags).to_bytes(4, "little")
         if key != self._key:
             self._key = key
-            self.pairs, self.lever, self.side = _body_pairs(m)
+            self.pairs, self.lever = _body_pairs(m)
             self.pair_of = np.full((m.nbody, m.nbody), -1)
             for p, (b1, b2) in enumerate(self.pairs):
                 self.pair_of[b1, b2] = self.pair_of[b2, b1] = p
-            # the levers of the positions screened (hinges only): per body, its geoms
-            self.hinges = bool((m.jnt_type == mujoco.mjtJoint.mjJNT_HINGE).all())
             geoms = np.flatnonzero((m.geom_contype != 0) | (m.geom_conaffinity != 0))
             geoms = np.union1d(geoms, np.concatenate([m.pair_geom1, m.pair_geom2])).astype(int)
-            self.geoms = geoms[np.argsort(m.geom_bodyid[geoms], kind="stable")]
-            gb = m.geom_bodyid[self.geoms]
-            self.geom_starts = np.flatnonzero(np.r_[True, gb[1:] != gb[:-1]])
-            self.geom_bodies = gb[self.geom_starts]
-            self.moves = self.side >= 0  # (P, nv): the dofs that move a pair's bodies apart
-            at = np.arange(m.nv)[None] * m.nbody + np.maximum(self.side, 0)
-            self.reach_at = at[:, self.angle_dof].T  # (hinges, P) into (nv, nbody) ravelled
-            self.moves_t = self.moves[:, self.angle_dof].T.astype(float)
             # every geom pair of every body pair, for a lower bound from bounding spheres
-            on = [self.geoms[gb == b] for b in range(m.nbody)]
+            on = [geoms[m.geom_bodyid[geoms] == b] for b in range(m.nbody)]
             g1, g2, gp = [], [], []
             for p, (b1, b2) in enumerate(self.pairs):
                 for a in on[b1]:
@@ -194,15 +188,14 @@ def _screen(m: mujoco.MjModel) -> _Screen:
     return s
 
 
-def _body_pairs(m: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _body_pairs(m: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
     """The pairs of bodies whose geoms MuJoCo may test for contact (``(P, 2)``: a superset of
     what its filters let through: contype/conaffinity, same weld, parent and child, plus the
     explicit pairs) and, per pair and degree of freedom, the lever (``(P, nv)``): how far the
     two bodies' geoms can move towards each other per radian (metre, for a slide) of that
     degree of freedom, in every configuration. Degrees of freedom above both bodies move them
     together and do not count; for the others, the lever is the distance from the joint's
-    anchor down the tree to the farthest point of the body's geoms (offsets summed). Also
-    ``(P, nv)``: which body of the pair each degree of freedom moves (-1: neither, or both)."""
+    anchor down the tree to the farthest point of the body's geoms (offsets summed)."""
     col = np.flatnonzero((m.geom_contype != 0) | (m.geom_conaffinity != 0))
     reach = np.zeros(m.nbody)  # farthest collision-geom point from each body's origin
     for g in np.union1d(col, np.concatenate([m.pair_geom1, m.pair_geom2])).astype(int):
@@ -233,13 +226,6 @@ def _body_pairs(m: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             found.add((b1, b2))
     pairs = np.array(sorted(found), dtype=int).reshape(-1, 2)
     lever = np.zeros((len(pairs), m.nv))
-    side = np.full((len(pairs), m.nv), -1)  # the body of the pair each dof moves, or -1
-    dof_body = m.jnt_bodyid[m.dof_jntid]
-    for p, (b1, b2) in enumerate(pairs):
-        for d in range(m.nv):
-            in1, in2 = dof_body[d] in chain[b1], dof_body[d] in chain[b2]
-            if in1 != in2:
-                side[p, d] = b1 if in1 else b2
     for p, (b1, b2) in enumerate(pairs):
         for b, other in ((b1, b2), (b2, b1)):
             shared = set(chain[other])
@@ -252,7 +238,7 @@ def _body_pairs(m: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
                     _add_lever(m, lever[p], j, a, path[n - 1] if n else -1, below, reach[b])
                 if n:
                     below += float(np.linalg.norm(m.body_pos[path[n - 1]]))
-    return pairs, lever, side
+    return pairs, lever
 
 
 def _add_lever(
@@ -345,62 +331,58 @@ class StateRecorder(Observer):
         top = max(float(m.geom_margin.max(initial=0.0)), float(m.pair_margin.max(initial=0.0)))
         if m.opt.enableflags & int(mujoco.mjtEnableBit.mjENBL_OVERRIDE):
             top = max(top, float(m.opt.o_margin))
-        # each degree of freedom's travel from one position to another: |difference| of the
-        # angles (hinges, slides); the sum of the step moves bounded by the velocities (others)
-        angles = q[:, scr.angle_col]
-        summed = None
+        # each degree of freedom's travel from each position to the next: the angles'
+        # difference (hinges, slides), the velocities' bound (others), summed along the block;
+        # times each pair's levers: how far a pair's geoms may have closed in, cumulated
+        # (nondecreasing per pair, laid end to end with offsets: one sorted array to search)
+        travel = np.zeros((len(q), m.nv))
+        travel[1:, scr.angle_dof] = np.abs(np.diff(q[:, scr.angle_col], axis=0))
         if scr.other_dof.size:
             safety = 1.01 if m.opt.integrator in _EXACT else 2.0
             o = scr.other_dof
-            speed = np.maximum(np.abs(v_before[:, o]), np.abs(v_after[:, o]))
-            summed = np.vstack([np.zeros((1, o.size)), np.cumsum(safety * self.dt * speed, 0)])
-        lever_a = scr.lever[:, scr.angle_dof].T  # (hinges, P)
-        lever_o = scr.lever[:, scr.other_dof].T
-        moves = scr.moves_t
-        j, k, touching = 0, len(q), False
-        window = 64
+            speed = np.maximum(np.abs(v_before[:-1, o]), np.abs(v_after[:-1, o]))
+            travel[1:, o] = safety * self.dt * speed
+        closed = np.cumsum(travel, axis=0) @ scr.lever.T  # (k, P)
+        offset = np.arange(closed.shape[1]) * (float(closed[-1].max(initial=0.0)) + 1.0)
+        ends = (closed + offset).T.ravel()
+        first = np.arange(closed.shape[1]) * len(q)
+        k, touching = len(q), False
+        j = 0  # the first position not known to be clear
+        hop = 0  # how far the last screen cleared ahead of itself (0: screen at j)
+        ahead: tuple[int, int] | None = None  # positions a screen ahead of j cleared
         while j < k:
+            if ahead is not None and j >= ahead[0]:
+                j, ahead = max(j, ahead[1]), None
+                continue
+            # a screen ahead of j clears positions before it too (the bound is symmetric)
+            t = min(k - 1, j + (4 * hop) // 5)
             # while touching, the next step likely touches too: no screening there
-            gap = lever = None
-            if not touching and scr.usable:
-                gap, lever = self._gaps(scr, q[j], top)
+            gap = None if touching or not scr.usable else self._gaps(scr, q[t], top)
             if gap is None or (gap.size and gap.min() <= _TOLERANCE_M):
+                if t > j:  # the position ahead may touch: screen at j instead
+                    hop = 0
+                    continue
                 d = scr.data  # may touch here: the model's own collision detection
                 d.qpos[:] = q[j]
                 mujoco.mj_kinematics(m, d)
                 mujoco.mj_collision(m, d)
                 self._record_contacts(d, float(times[j]))
                 touching = d.ncon > 0
-                j += 1
+                j, hop = j + 1, 0
                 continue
-            # clear until some pair's geoms may have closed their gap
-            gap = gap - _TOLERANCE_M
-            start = j
-            while True:
-                stop = min(k, j + window)
-                delta = np.abs(angles[j + 1 : stop] - angles[start])
-                moved = delta @ lever_a
-                if summed is not None:
-                    moved += (summed[j + 1 : stop] - summed[start]) @ lever_o
-                elif lever is not None:  # all hinges: the levers where the screen was
-                    turned = delta @ moves  # (w, P): radians turned in all, s
-                    grown = np.expm1(turned) / np.maximum(turned, 1e-300)  # (e^s - 1) / s
-                    grown[turned < 1e-12] = 1.0
-                    moved = np.minimum(moved, (delta @ lever) * grown)
-                hit = np.flatnonzero((moved >= gap).any(axis=1))
-                if hit.size:
-                    j = j + 1 + int(hit[0])
-                    window = max(8, window // 2)
-                    break
-                j = stop - 1
-                window *= 2
-                if stop == k:
-                    j = k
-                    break
+            # clear from the first to the last position where no pair may have closed its gap
+            at = closed[t] + offset
+            end = int((np.searchsorted(ends, at + gap - _TOLERANCE_M) - first).min(initial=k))
+            if t == j:
+                j, hop = end, end - t
+                continue
+            start = int((np.searchsorted(ends, at - gap + _TOLERANCE_M, "right") - first).max())
+            if start <= j:
+                j, hop = end, end - t
+            else:  # a hole between j and what t cleared: screen at j, then jump
+                ahead, hop = (start, end), 0
 
-    def _gaps(
-        self, scr: _Screen, qpos: np.ndarray, top: float
-    ) -> tuple[np.ndarray, np.ndarray | None]:
+    def _gaps(self, scr: _Screen, qpos: np.ndarray, top: float) -> np.ndarray:
         """Per body pair of :func:`_body_pairs`, how far at ``qpos`` its geoms are from
         touching (at most :data:`SCREEN_M`); <= 0: they may touch."""
         w, d = scr.wide, scr.wide_data
@@ -421,14 +403,6 @@ class StateRecorder(Observer):
         gap = np.full(len(scr.pairs), SCREEN_M)
         if len(starts):  # every pair has a geom pair (it was found from one)
             gap = np.maximum(np.minimum.reduceat(apart, starts) - top, SCREEN_M)
-        lever = None
-        if scr.hinges:  # per dof and body: the farthest geom point from the joint's anchor
-            anchor = d.xanchor[m.dof_jntid]
-            far = np.linalg.norm(d.geom_xpos[scr.geoms][None] - anchor[:, None], axis=2)
-            far += m.geom_rbound[scr.geoms]
-            reach = np.zeros((m.nv, m.nbody))
-            reach[:, scr.geom_bodies] = np.maximum.reduceat(far, scr.geom_starts, axis=1)
-            lever = reach.ravel()[scr.reach_at] * scr.moves_t  # (hinges, P)
         if d.ncon:
             con = d.contact
             bodies = self.m.geom_bodyid[con.geom[: d.ncon]]
@@ -437,7 +411,7 @@ class StateRecorder(Observer):
                 gap[:] = 0.0
             else:
                 np.minimum.at(gap, pair, con.dist[: d.ncon] - top)
-        return gap, lever
+        return gap
 
 
 __all__ = ["SCREEN_M", "StateRecorder", "actuator_forces", "vectorisable"]
