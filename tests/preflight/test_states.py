@@ -87,19 +87,18 @@ def test_the_screen_never_clears_a_pair_that_touches(seed):
     screen's pairs."""
     import mujoco
 
-    from so101sim.preflight import states
+    from so101sim.preflight import screen
 
     sim = Simulation()
     m = sim.model
-    rec = StateRecorder(m)
-    scr = states._screen(m)
+    scr = screen._screen(m)
     d = mujoco.MjData(m)
     rng = np.random.default_rng(seed)
     lo, hi = m.jnt_range[:, 0], m.jnt_range[:, 1]
     cleared = touching = 0
     for _ in range(150):
         qa = rng.uniform(lo, hi)
-        gap = rec._gaps(scr, qa, 0.0)
+        gap = screen.gaps(m, scr, qa, 0.0)
         step = rng.normal(size=m.nv) * rng.choice([0.01, 0.05, 0.2])
         qb = np.clip(qa + step, lo, hi)
         delta = np.abs(qb - qa)
