@@ -110,7 +110,7 @@ def test_the_screen_never_clears_a_pair_that_touches(seed):
         pair = scr.pair_of[bodies[:, 0], bodies[:, 1]]
         assert (pair >= 0).all()  # MuJoCo's pairs are among the screen's
         touching += d.ncon > 0
-        clear = bound < gap - 1e-6
+        clear = bound < gap - screen._TOLERANCE_M
         cleared += int(clear.sum())
         assert not clear[pair].any()  # a cleared pair never touches
     assert touching > 0 and cleared > 0  # both cases were met

@@ -29,7 +29,7 @@ import numpy as np
 
 SCREEN_M = 0.04
 """How much wider than the model's the screening copy's margins are (metres)."""
-_TOLERANCE_M = 1e-6
+_TOLERANCE_M = 1e-5
 """Metres a screened gap must exceed the geoms' possible moves by (rounding in the distances)."""
 
 _EXACT = (
@@ -264,7 +264,8 @@ def contacts_at(
         if t == j:
             j, hop = end, end - t
             continue
-        start = int((np.searchsorted(ends, at - gap + _TOLERANCE_M, "right") - first).max())
+        back = np.searchsorted(ends, at - gap + _TOLERANCE_M, "right") - first
+        start = int(back.max(initial=0))
         if start <= j:
             j, hop = end, end - t
         else:  # a hole between j and what t cleared: screen at j, then jump
