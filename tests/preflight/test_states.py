@@ -13,6 +13,10 @@ from so101sim.units import STARTING_POSE, ZERO_POSE
 
 INTO_FLOOR = {**ZERO_POSE, "shoulder_lift": 60.0, "elbow_flex": 60.0}
 CURLED = {**ZERO_POSE, "shoulder_lift": -90.0, "elbow_flex": 90.0, "wrist_flex": 95.0}
+EVERY_JOINT = {
+    "shoulder_pan": 60.0, "shoulder_lift": 30.0, "elbow_flex": -20.0, "wrist_flex": 40.0,
+    "wrist_roll": 90.0, "gripper": 80.0,
+}  # fmt: skip
 
 
 def _record(cls, poses):
@@ -27,7 +31,13 @@ def _record(cls, poses):
 
 
 @pytest.mark.parametrize(
-    "poses", [[ZERO_POSE, STARTING_POSE], [INTO_FLOOR, STARTING_POSE], [CURLED, INTO_FLOOR]]
+    "poses",
+    [
+        [ZERO_POSE, STARTING_POSE],
+        [INTO_FLOOR, STARTING_POSE],
+        [CURLED, INTO_FLOOR],
+        [EVERY_JOINT, INTO_FLOOR, EVERY_JOINT, STARTING_POSE],
+    ],
 )
 def test_the_state_recorder_gives_the_step_recorders_samples_bit_for_bit(poses):
     a, steps = _record(StepRecorder, poses)
@@ -39,7 +49,7 @@ def test_the_state_recorder_gives_the_step_recorders_samples_bit_for_bit(poses):
         assert np.array_equal(np.array(s.forces), v.forces)  # MuJoCo's own forces, exactly
         assert s.contacts == v.contacts  # every contact of every step, same order and depth
         touched += len(v.contacts)
-    if poses[0] is not ZERO_POSE:
+    if INTO_FLOOR in poses:
         assert touched > 0  # the cases that touch did touch
 
 
@@ -67,3 +77,40 @@ def test_a_model_whose_forces_do_not_follow_from_the_states_is_watched_per_step(
     m = copy.copy(load_model())
     m.actuator_gaintype[0] = 2  # user-defined gain: nothing to vectorise
     assert not vectorisable(m)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_screen_never_clears_a_pair_that_touches(seed):
+    """The screen's promise, checked against MuJoCo's own collision detection: at random arm
+    positions, a pair of bodies whose gap exceeds its bound (joint travel times the pair's
+    levers) does not touch at a nearby position; and every pair MuJoCo reports is one of the
+    screen's pairs."""
+    import mujoco
+
+    from so101sim.preflight import screen
+
+    sim = Simulation()
+    m = sim.model
+    scr = screen._screen(m)
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(seed)
+    lo, hi = m.jnt_range[:, 0], m.jnt_range[:, 1]
+    cleared = touching = 0
+    for _ in range(150):
+        qa = rng.uniform(lo, hi)
+        gap = screen.gaps(m, scr, qa, 0.0)
+        step = rng.normal(size=m.nv) * rng.choice([0.01, 0.05, 0.2])
+        qb = np.clip(qa + step, lo, hi)
+        delta = np.abs(qb - qa)
+        bound = delta @ scr.lever.T
+        d.qpos[:] = qb
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_collision(m, d)
+        bodies = m.geom_bodyid[d.contact.geom[: d.ncon]]
+        pair = scr.pair_of[bodies[:, 0], bodies[:, 1]]
+        assert (pair >= 0).all()  # MuJoCo's pairs are among the screen's
+        touching += d.ncon > 0
+        clear = bound < gap - screen._TOLERANCE_M
+        cleared += int(clear.sum())
+        assert not clear[pair].any()  # a cleared pair never touches
+    assert touching > 0 and cleared > 0  # both cases were met

@@ -16,6 +16,9 @@ in the caption, the video's metadata and the plot's heading. The video is drawn 
 recording closes (:class:`DeferredVideo` keeps each frame's state meanwhile, a few hundred bytes
 each), so that the camera is fitted to the whole motion the script made, as ``so101sim run
 --record`` fits it to the motion file's path: the arm's sweep fills the frame in every view.
+
+Long on purpose: the two ways to a hand-in (:func:`record` on a motion, :func:`run_script` on
+a student's script) share the recording viewer and its output checks, and read best together.
 """
 
 from __future__ import annotations

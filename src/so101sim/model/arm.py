@@ -32,6 +32,9 @@ standard SO-101, 12 V for the "pro" kit) scales the torque-related ones (``kp_pe
 Shipped profiles (``so101sim/data/arms``): ``official`` (the vendored model's values),
 ``sts3215`` (fitted on a real STS3215 pendulum bench at 12 V, driven at 7.4 V) and
 ``sts3215-12v`` (the same fit at 12 V). :func:`load_profile` takes a name or a TOML path.
+
+Long on purpose: a profile's fields, its TOML (loading and writing) and how it is applied
+are one format and read best side by side (a field added in one place needs the others).
 """
 
 from __future__ import annotations

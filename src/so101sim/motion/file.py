@@ -53,6 +53,9 @@ by :mod:`so101sim.motion.tip`.
 
 (Over 400 lines: the loader is one class whose parts share the file's line lookup; the reading,
 the line scan and the tip moves are in the two modules named above.)
+
+Long on purpose: one loader (:class:`_Loader`) walks the TOML, and every rule a motion
+file obeys is in it, with its file:line error, in the order a file is read.
 """
 
 from __future__ import annotations

@@ -26,6 +26,9 @@ The figures are then judged by :func:`so101sim.preflight.judge.judge`, the singl
 
 (About 440 lines: the block-by-block reduction mirrors :mod:`so101sim.preflight.measure` figure
 for figure, and is kept next to the rollout loop that feeds it.)
+
+Long on purpose: one variant's run (the worker, its per-step accumulator and the contact
+namer) is one algorithm, each part written against the others' arrays.
 """
 
 from __future__ import annotations

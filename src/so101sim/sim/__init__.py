@@ -2,8 +2,9 @@
 
 May import: the model layer (``so101sim.model``), ``so101sim.kinematics`` (tip moves) and the
 base modules (errors, validation, units). Modules: :mod:`.simulation` (``Simulation``,
-``SegmentResult``), :mod:`.stepping` (the stepping loops, observers, pacing), :mod:`.profiles`
-(the move profiles), :mod:`.limited` (the servo-limited ``limited`` profile).
+``SegmentResult``), :mod:`.stepping` (the stepping kernel), :mod:`.observers` (observers,
+pacing), :mod:`.profiles` (the move profiles), :mod:`.limited` (the servo-limited
+``limited`` profile).
 """
 
 from .simulation import (

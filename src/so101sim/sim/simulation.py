@@ -11,6 +11,10 @@ The stepping pieces (:class:`Observer`, :class:`Trace`, :class:`Pacer`,
 
 Why this module is over 400 lines: it is the one class users drive, and its public methods
 (each short, with its docstring) belong together; the stepping machinery is already apart.
+
+Long on purpose: :class:`Simulation` is the sim layer's one public object; its methods
+share its state (the commanded targets, the observers, the viewers' timelines) and are
+its documentation, so it stays one class in one module.
 """
 
 from __future__ import annotations

@@ -11,6 +11,9 @@ replay and scrub the run. :meth:`Studio.close` stops the server and its threads.
 
 viser and mjviser are an optional extra: :func:`require_viser` raises :class:`StudioError`
 naming ``pip install "so101sim[web]"`` when they are missing.
+
+Long on purpose: one :class:`Studio` object, whose handlers share the server, the
+scene and the timeline; split, its halves would reach into each other's state.
 """
 
 from __future__ import annotations

@@ -1,0 +1,191 @@
+"""Observers and pacing: what watches a run of the stepping kernel (:mod:`.stepping`).
+
+Anything that wants to see a run (a viewer, a video recorder, a CSV log) is an
+:class:`Observer`: it names the next simulated time it wants to be called at, and/or receives
+every step's commanded and measured joint angles in blocks (:class:`Trace`). Wall-clock
+pacing exists only to show a run to a person: :class:`Pacer` sleeps to absolute deadlines, so
+it does not drift however long the run; :class:`ViewerObserver` syncs a viewer through one.
+These names are also importable from :mod:`so101sim.sim.stepping`, as before.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from ..validation import check_range
+
+log = logging.getLogger(__name__)
+
+
+# ---------------------------------------------------------------------------- pacing
+MAX_PLAYBACK_SPEED = 1000.0
+"""The fastest playback a :class:`Pacer` accepts, in multiples of real time."""
+MIN_PLAYBACK_SPEED = 1e-3
+"""The slowest playback a :class:`Pacer` accepts (1/1000 of real time)."""
+
+
+class Pacer:
+    """Keeps simulated time in step with the wall clock, for showing a run to a person.
+
+    Each :meth:`wait` sleeps until the absolute wall-clock deadline of the given simulated time
+    (``wall0 + (sim_time - sim0) / speed``), so errors never accumulate. If the run falls more
+    than ``max_lag`` seconds behind (a slow machine, a dragged window), it re-anchors instead of
+    racing to catch up. ``clock`` and ``sleep`` are injectable for tests.
+    """
+
+    def __init__(
+        self,
+        speed: float = 1.0,
+        *,
+        clock: Callable[[], float] = time.perf_counter,
+        sleep: Callable[[float], Any] = time.sleep,
+        max_lag: float = 0.25,
+    ) -> None:
+        self.speed = check_range(
+            speed,
+            "speed",
+            low=MIN_PLAYBACK_SPEED,
+            high=MAX_PLAYBACK_SPEED,
+            expected=(
+                f"a multiple of real time from {MIN_PLAYBACK_SPEED:g} to {MAX_PLAYBACK_SPEED:g} "
+                "(1 = real time, 0.5 = half speed)"
+            ),
+        )
+        self.clock = clock
+        self.sleep = sleep
+        self.max_lag = max_lag
+        self._anchor: tuple[float, float] | None = None
+        self.lag_events = 0
+
+    def reset(self) -> None:
+        """Forget the anchor: the next :meth:`wait` starts a new timeline."""
+        self._anchor = None
+
+    def wait(self, sim_time: float) -> float:
+        """Sleep until ``sim_time`` is due on the wall clock; return the seconds slept."""
+        now = self.clock()
+        if self._anchor is None:
+            self._anchor = (now, sim_time)
+            return 0.0
+        wall0, sim0 = self._anchor
+        delay = wall0 + (sim_time - sim0) / self.speed - now
+        if delay > 0:
+            self.sleep(delay)
+            return delay
+        if -delay > self.max_lag:
+            self.lag_events += 1
+            log.debug("pacing %.3f s behind the wall clock; re-anchoring", -delay)
+            self._anchor = (now, sim_time)
+        return 0.0
+
+
+# ---------------------------------------------------------------------------- observers
+@dataclass
+class Trace:
+    """Per-step record of stepping: the time after each step, the target applied during it and
+    the joint angles after it (radians, arm joint order)."""
+
+    time: np.ndarray  # (n,)
+    ctrl: np.ndarray  # (n, 6)
+    qpos: np.ndarray  # (n, 6)
+    completed: bool = True
+    steps: int = -1  # steps taken; -1: len(time) (a trace may keep no per-step arrays)
+    # the blocks observers see: every step's whole state (FULLPHYSICS rows: time, qpos, qvel,
+    # ...), as the kernel recorded it; None in the trace a run returns
+    states: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return self.steps if self.steps >= 0 else len(self.time)
+
+
+class Observer:
+    """Something that watches a run. Override what you need; the defaults do nothing.
+
+    * :meth:`next_time`: the simulated time of the next call to :meth:`on_time`
+      (``math.inf``: none). Stepping stops at the first step that reaches it.
+    * :meth:`on_time`: called with the live model and data; return False to stop the run
+      (a viewer that was closed).
+    * :meth:`on_steps`: each block of steps, as they are taken, with the phase's name.
+    * :meth:`on_start`: once before each run of steps, with the live model and data.
+    """
+
+    def on_start(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        return None
+
+    def next_time(self) -> float:
+        return math.inf
+
+    def on_time(self, m: mujoco.MjModel, d: mujoco.MjData) -> bool:
+        return True
+
+    def on_steps(self, trace: Trace, phase: str) -> None:
+        return None
+
+
+_wall = time.perf_counter  # the real clock, even while a script's clock follows simulated time
+
+MAX_VIEWER_PERIOD = 0.25
+"""Simulated seconds between two viewer frames at most, however slowly the viewer draws."""
+
+
+class ViewerObserver(Observer):
+    """Syncs a viewer (anything with ``sync()`` and ``is_running()``) up to ``fps`` times per
+    simulated second, paced to the wall clock by a :class:`Pacer`.
+
+    A viewer whose ``sync()`` waits while it draws (MuJoCo's passive viewer: about 25 ms a
+    frame with the full meshes on a CPU renderer) would slow the run below real time at 60
+    frames a second; so the observer measures what a sync costs (a running mean) and syncs less
+    often when needed: drawing then takes at most half the wall-clock time, and the run keeps
+    real time (or ``speed`` times it) wherever the machine can step that fast, with fewer
+    frames shown (at least one every :data:`MAX_VIEWER_PERIOD` simulated seconds)."""
+
+    def __init__(self, viewer: Any, pacer: Pacer | None = None, fps: float = 60.0) -> None:
+        self.viewer = viewer
+        self.pacer = pacer if pacer is not None else Pacer()
+        self.period = 1.0 / fps
+        self.sync_cost = 0.0  # wall seconds a sync takes (running mean)
+        self.syncs = 0
+        self._next = -math.inf
+        self._last = -math.inf
+
+    def on_start(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        if d.time < self._last:  # the clock went back (a reset): start a new timeline
+            log.debug("simulated time went back to %.3f s; re-anchoring the viewer", d.time)
+            self._next = -math.inf
+            self.pacer.reset()
+
+    def next_time(self) -> float:
+        return self._next
+
+    def on_time(self, m: mujoco.MjModel, d: mujoco.MjData) -> bool:
+        if not self.viewer.is_running():
+            return False
+        self.pacer.wait(d.time)
+        start = _wall()
+        self.viewer.sync()
+        cost = _wall() - start
+        self.syncs += 1
+        self.sync_cost = cost if self.syncs == 1 else 0.8 * self.sync_cost + 0.2 * cost
+        period = max(self.period, min(MAX_VIEWER_PERIOD, 2.0 * self.sync_cost * self.pacer.speed))
+        self._last = d.time
+        self._next = d.time + period - 1e-9
+        return True
+
+
+__all__ = [
+    "MAX_PLAYBACK_SPEED",
+    "MAX_VIEWER_PERIOD",
+    "MIN_PLAYBACK_SPEED",
+    "Observer",
+    "Pacer",
+    "Trace",
+    "ViewerObserver",
+]
