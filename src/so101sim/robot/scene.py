@@ -34,6 +34,7 @@ from ..scenes import (
     SCENE_PRESETS,
     Placement,
     TableScene,
+    object_qpos,
     place_objects,
     sample_placements,
     scene_of,
@@ -43,6 +44,9 @@ from ..validation import check_count
 log = logging.getLogger(__name__)
 
 MAX_SEED = 2**63 - 1
+MAX_DISTANCE_M = 10.0
+"""Object positions in :meth:`RobotScene.environment_state` are clipped to this (metres), as
+the environments clip theirs."""
 
 _lock = threading.Lock()
 _connected: weakref.WeakSet[Any] = weakref.WeakSet()
@@ -185,6 +189,23 @@ class RobotScene:
     def name(self) -> str:
         """The scene preset's name (``pick_cube``, ``cube_to_bowl``)."""
         return str(self.follower.config.scene)
+
+    @property
+    def state_size(self) -> int:
+        """The length of :meth:`environment_state`: 7 per object."""
+        return 7 * len(self.scene.objects)
+
+    def environment_state(self) -> np.ndarray:
+        """Each object's position (metres) and quaternion (w, x, y, z), in the scene's order
+        (cube, then bowl), float32: what the environments give as ``environment_state``
+        (LeRobot: ``observation.environment_state``)."""
+        follower = self.follower
+        with follower.lock:
+            sim = follower.simulation
+            parts = [sim.data.qpos[object_qpos(sim.model, o.name)] for o in self.scene.objects]
+            state = np.concatenate(parts).astype(np.float32)
+        bound = np.tile(np.r_[np.full(3, MAX_DISTANCE_M), np.ones(4)], len(self.scene.objects))
+        return np.clip(state, -bound, bound).astype(np.float32)
 
     @property
     def pending(self) -> int | None:
