@@ -6,7 +6,8 @@ keys as noted):
 
 * ``agent_pos`` (6,) float32: the measured joint positions, degrees and gripper 0-100
   (``observation.state``);
-* ``agent_vel`` (6,) float32: their velocities, per second;
+* ``agent_vel`` (6,) float32: their velocities, per second, if ``joint_velocities`` (the
+  default; LeRobot has no key for it, so the LeRobot env plugin turns it off);
 * ``environment_state`` (7 per object) float32, if ``object_state``: each object's position
   (metres) and orientation quaternion (w, x, y, z) (``observation.environment_state``);
 * ``pixels``: ``{camera: (height, width, 3) uint8}``, if ``cameras`` are named
@@ -95,6 +96,7 @@ class So101TaskEnv(SceneState, gym.Env):
         cameras: tuple[str, ...] | list[str] = (),
         image_size: tuple[int, int] = (224, 224),
         object_state: bool = True,
+        joint_velocities: bool = True,
         control_hz: float = 25.0,
         episode_seconds: float | None = None,
         max_delta: float = 10.0,
@@ -120,6 +122,7 @@ class So101TaskEnv(SceneState, gym.Env):
         )
         self.quality = check_quality(quality, QUALITY_CHOICES)
         self.object_state = bool(object_state)
+        self.joint_velocities = bool(joint_velocities)
         self.terminate_on_success = bool(terminate_on_success)
         hz = check_range(control_hz, "control_hz", low=1.0, high=500.0, unit=" Hz")
         seconds = check_range(
@@ -183,8 +186,10 @@ class So101TaskEnv(SceneState, gym.Env):
                 (upper + tol).astype(np.float32),
                 dtype=np.float32,
             ),
-            "agent_vel": spaces.Box(-MAX_JOINT_SPEED, MAX_JOINT_SPEED, (n,), dtype=np.float32),
         }
+        if self.joint_velocities:
+            fastest = MAX_JOINT_SPEED
+            items["agent_vel"] = spaces.Box(-fastest, fastest, (n,), dtype=np.float32)
         if self.object_state:
             k = len(self.scene.objects)
             bound = np.tile(np.r_[np.full(3, MAX_DISTANCE_M), np.ones(4)], k).astype(np.float32)
@@ -357,9 +362,10 @@ class So101TaskEnv(SceneState, gym.Env):
         sim = self.sim
         space = self.observation_space["agent_pos"]
         pos = np.clip(sim.pose_array(), space.low, space.high).astype(np.float32)
-        vel = np.clip(sim.data.qvel[sim.index.dof] / self._scale, -MAX_JOINT_SPEED, MAX_JOINT_SPEED)
-        vel = vel.astype(np.float32)
-        obs: dict[str, Any] = {"agent_pos": pos, "agent_vel": vel}
+        obs: dict[str, Any] = {"agent_pos": pos}
+        if self.joint_velocities:
+            vel = sim.data.qvel[sim.index.dof] / self._scale
+            obs["agent_vel"] = np.clip(vel, -MAX_JOINT_SPEED, MAX_JOINT_SPEED).astype(np.float32)
         if self.object_state:
             poses = [self.object_pose(o.name) for o in self.scene.objects]
             state = np.concatenate(poses).astype(np.float32)
