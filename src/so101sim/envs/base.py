@@ -39,12 +39,16 @@ from ..recording.settings import check_quality
 from ..robot.config import GRIPPER_TORQUE_FRACTION
 from ..scenes import (
     PRESET_CAMERAS,
+    Randomization,
+    SceneRandomizer,
     VisualJitter,
     VisualRandomizer,
+    add_distractors,
     build_scene,
     camera,
     place_objects,
     preset_scene,
+    randomization,
     sample_placements,
 )
 from ..sim.simulation import Simulation
@@ -109,6 +113,7 @@ class So101TaskEnv(SceneState, gym.Env):
         gripper_torque_fraction: float = GRIPPER_TORQUE_FRACTION,
         terminate_on_success: bool = True,
         initial_pose: Pose | None = None,
+        randomize: str | Randomization | dict[str, Any] | None = None,
     ) -> None:
         if render_mode is not None:
             check_choice(render_mode, "render mode", RENDER_MODES)
@@ -137,7 +142,11 @@ class So101TaskEnv(SceneState, gym.Env):
             gripper_torque_fraction, "gripper_torque_fraction", low=0.0, high=1.0, low_open=True
         )
         self.scene = preset_scene(self.scene_name, cameras=self._camera_specs())
-        self.model = build_scene(self.scene)
+        self.randomize = randomization(randomize)
+        n = self.randomize.distractors
+        self.model = build_scene(
+            self.scene, extra=(lambda spec: add_distractors(spec, n)) if n else None
+        )
         limit_gripper(self.model, fraction)
         self.sim = Simulation(self.model, initial_pose=initial_pose or STARTING_POSE)
         self._period_steps = 1.0 / (hz * self.sim.timestep)  # physics steps per env step
@@ -156,6 +165,9 @@ class So101TaskEnv(SceneState, gym.Env):
         self.jitter = (visual_jitter or VisualJitter()).validated()
         self._renderers: dict[str, FrameRenderer] = {}
         self._randomizer: VisualRandomizer | None = None
+        self._scene_randomizer: SceneRandomizer | None = None
+        self.randomization: dict[str, Any] = {}
+        """What the last reset's randomisation drew (empty without ``randomize``)."""
         self._viewer_stack: contextlib.ExitStack | None = None
         self._viewer: Any = None
         self._steps = 0
@@ -212,6 +224,23 @@ class So101TaskEnv(SceneState, gym.Env):
             self._randomizer = None  # a new render model: jitter it too from now on
         return r
 
+    def _randomize(self) -> None:
+        """The episode's domain randomisation, drawn after the start poses (which stay those
+        drawn without it) from the same generator."""
+        if not self.randomize.active:
+            return
+        for name in self.cameras:
+            self._renderer(name, self.image_size)
+        if self.render_mode == "rgb_array":
+            self._renderer(self.render_camera, self.render_size)
+        renders = [r.render_model for r in self._renderers.values()]
+        if self._scene_randomizer is None:
+            objects = [o.name for o in self.scene.objects]
+            self._scene_randomizer = SceneRandomizer(self.model, objects, self.randomize, renders)
+        for m in renders:
+            self._scene_randomizer.add_render_model(m)
+        self.randomization = self._scene_randomizer.apply(self.np_random, self.sim.data)
+
     def _jitter(self) -> None:
         if not self.jitter.active:
             return
@@ -243,6 +272,7 @@ class So101TaskEnv(SceneState, gym.Env):
         if placements is not None:
             poses.update({k: tuple(map(float, v)) for k, v in dict(placements).items()})
         place_objects(self.model, self.sim.data, poses)
+        self._randomize()
         self.actions.reset(self.sim.commanded_array())
         self._jitter()
         self._steps = 0
