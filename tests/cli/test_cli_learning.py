@@ -30,6 +30,10 @@ def no_plugins(monkeypatch):
     ("argv", "package"),
     [
         (["dataset", "pick_cube", "--episodes", "2", "-o", "OUT"], "lerobot_robot_so101sim"),
+        (
+            ["eval", "POLICY", "--task", "pick_cube", "--episodes", "2", "-o", "OUT"],
+            "lerobot_env_so101sim",
+        ),
     ],
 )
 def test_without_the_plugin_the_command_says_what_to_install(

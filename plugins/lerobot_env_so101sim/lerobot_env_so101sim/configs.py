@@ -82,6 +82,9 @@ class SO101SimEnvConfig(EnvConfig):
     ``config.json``, or a Hub id); None: ``--policy.path`` of LeRobot's command line, if any."""
     reward: str = "dense"
     """``dense`` (0..1) or ``sparse`` (1 on success)."""
+    randomize: str = "none"
+    """Domain randomisation per episode: ``none``, ``light`` or ``full`` (so101sim's presets,
+    ``gym.make(..., randomize=...)``)."""
     render_mode: str = "rgb_array"
     visualization_height: int = 480
     visualization_width: int = 640
@@ -111,6 +114,7 @@ class SO101SimEnvConfig(EnvConfig):
             check_count(getattr(self, name), name, minimum=2, maximum=MAX_IMAGE_SIDE, even=True)
         check_choice(self.quality, "quality", QUALITY_CHOICES)
         check_choice(self.reward, "reward", ("dense", "sparse"))
+        check_choice(self.randomize, "randomize", ("none", "light", "full"))
         check_choice(self.render_mode, "render_mode", ("rgb_array",))
         self._fill_defaults()
         path = self.policy_path if self.policy_path is not None else _policy_path_argument()
@@ -249,6 +253,8 @@ class SO101SimEnvConfig(EnvConfig):
             "render_size": (self.visualization_height, self.visualization_width),
             "terminate_on_success": True,
         }
+        if self.randomize != "none":
+            kwargs["randomize"] = self.randomize
         if self.episode_length is not None:
             kwargs["episode_seconds"] = check_range(
                 self.episode_length / self.fps, "episode_length / fps", low=0.0, high=3600.0

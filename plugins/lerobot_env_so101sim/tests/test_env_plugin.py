@@ -169,3 +169,17 @@ def test_the_env_takes_the_policys_cameras_sizes_and_state_and_refuses_a_mismatc
     plain = parse_env("type=so101sim_pick_cube")
     assert plain.cameras == ["front", "wrist"] and plain.observation_height == 480
     assert plain.object_state is False
+
+
+def test_wilson_interval_and_the_randomize_option():
+    from lerobot_env_so101sim.evaluate import wilson_interval
+
+    assert wilson_interval(0, 2) == (0.0, pytest.approx(0.6576, abs=1e-4))
+    low, high = wilson_interval(40, 50)
+    assert low == pytest.approx(0.6697, abs=1e-4) and high == pytest.approx(0.8876, abs=1e-4)
+    assert wilson_interval(0, 0) == (0.0, 1.0)
+    cfg = parse_env("type=so101sim_pick_cube", "randomize=light")
+    assert cfg.gym_kwargs["randomize"] == "light"
+    assert "randomize" not in parse_env("type=so101sim_pick_cube").gym_kwargs
+    with pytest.raises(draccus.utils.ParsingError):
+        parse_env("type=so101sim_pick_cube", "randomize=heavy")

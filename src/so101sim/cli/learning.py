@@ -86,6 +86,31 @@ def add_learning_commands(sub: SubParsers) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_dataset)
 
+    p = sub.add_parser(
+        "eval",
+        help="a policy's success rate on a task, episodes in parallel (needs the LeRobot plugin)",
+        description=(
+            "Runs N episodes of the policy saved at POLICY_PATH (lerobot-train's "
+            ".../pretrained_model) on TASK in worker processes, the environment matching the "
+            "policy's inputs, episode k from seed --seed + k; prints the success rate with its "
+            "95 %% (Wilson) interval and the time to success, writes eval.json and a video of "
+            "each failure under --output. Needs lerobot_env_so101sim installed."
+        ),
+    )
+    p.add_argument("policy", metavar="POLICY_PATH", help="the policy's folder (config.json)")
+    p.add_argument("--task", default="pick_cube", help="pick_cube (default) or cube_to_bowl")
+    p.add_argument("--episodes", type=int, default=10, help="episodes (default 10)")
+    p.add_argument("--seed", type=int, default=1000, help="first episode's seed (1000)")
+    p.add_argument("--workers", type=int, help="worker processes (default: every core)")
+    p.add_argument("--randomize", default="none", help="none (default), light or full")
+    p.add_argument("--episode-length", type=int, help="steps per episode (default: the task's)")
+    p.add_argument("--fps", type=int, default=30, help="policy steps per second (30)")
+    p.add_argument("-o", "--output", help="folder for eval.json and the failures' videos")
+    p.add_argument("--max-videos", type=int, default=10, help="failure videos at most (10)")
+    p.add_argument("--device", default="cpu", help="torch device (cpu)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_eval)
+
 
 def _workers(value: int | None) -> int:
     import os
@@ -134,6 +159,47 @@ def cmd_dataset(args: argparse.Namespace) -> int:
     if report.failed_seeds:
         seeds = ", ".join(str(s) for s in report.failed_seeds)
         print(f"left out {len(report.failed_seeds)} failed take(s): seeds {seeds}")
+    return 0
+
+
+def cmd_eval(args: argparse.Namespace) -> int:
+    module = plugin_module("eval")
+    if module is None:
+        return 2
+    from tqdm import tqdm
+
+    settings = module.EvalSettings(
+        policy=args.policy,
+        task=args.task,
+        episodes=args.episodes,
+        seed=args.seed,
+        workers=_workers(args.workers),
+        randomize=args.randomize,
+        episode_length=args.episode_length,
+        fps=args.fps,
+        output=args.output,
+        max_videos=args.max_videos,
+        device=args.device,
+    )
+    bar = tqdm(total=args.episodes, unit="episode", disable=args.no_progress, file=sys.stderr)
+    try:
+        report = module.evaluate_policy(settings, lambda _: bar.update(1))
+    finally:
+        bar.close()
+    low, high = report.interval
+    print(
+        f"{report.task} (randomize {report.randomize}): success {report.successes}/"
+        f"{report.episodes} = {100 * report.success_rate:.0f} % "
+        f"(95 % interval {100 * low:.0f}-{100 * high:.0f} %) in {report.wall_seconds:.1f} s "
+        f"with {report.workers} worker(s)"
+    )
+    times = report.success_times
+    if times:
+        print(f"time to success: mean {sum(times) / len(times):.2f} s, "
+              f"median {sorted(times)[len(times) // 2]:.2f} s (simulated)")  # fmt: skip
+    videos = [o.video for o in report.outcomes if o.video]
+    if videos:
+        print(f"videos of {len(videos)} failure(s) in {videos[0].rsplit('/', 1)[0]}")
     return 0
 
 
