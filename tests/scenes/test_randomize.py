@@ -118,3 +118,26 @@ def test_distractors_are_built_into_the_scene_and_placed_clear_of_the_cube():
         for d in placed:
             assert np.hypot(d["x"] - cube[0], d["y"] - cube[1]) >= 0.07
     assert max(counts) > 0 and obs["environment_state"].shape == (7,)  # only the task's objects
+
+
+def test_the_follower_draws_the_same_scene_as_the_environment_for_a_seed():
+    """The simulated follower (LeRobot: --robot.randomize=full) at a take's reset draws what
+    the environment draws at reset(seed) although their models differ in cameras."""
+    from so101sim.robot import SO101SimFollower, SO101SimFollowerConfig
+    from so101sim.robot.scene import robot_scene
+
+    robot = SO101SimFollower(
+        SO101SimFollowerConfig(scene="pick_cube", mode="lockstep", randomize="full")
+    )
+    robot.connect()
+    try:
+        scene = robot_scene(robot)
+        scene.reset(5)
+        env = gym.make(ID, randomize="full", cameras=["front"])
+        obs, _ = env.reset(seed=5)
+        assert scene.randomization == env.unwrapped.randomization
+        np.testing.assert_allclose(scene.environment_state(), obs["environment_state"], atol=1e-6)
+    finally:
+        robot.disconnect()
+    with pytest.raises(SettingError, match="needs a scene"):
+        SO101SimFollowerConfig(randomize="light")

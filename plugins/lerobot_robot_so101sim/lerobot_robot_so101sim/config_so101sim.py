@@ -107,6 +107,9 @@ class SO101SimConfig(RobotConfig):
     added to the simulated arm's scene. None: the arm alone."""
     initial_pose: dict[str, float] = field(default_factory=lambda: dict(STARTING_POSE))
     gripper_torque_fraction: float = 0.5
+    randomize: str = "none"
+    """Domain randomisation of the ``scene`` at each new take: ``none``, ``light`` or ``full``
+    (so101sim's presets; the same draws as ``gym.make(..., randomize=...)`` for the same seed)."""
     environment_state: bool = False
     """Also observe the scene's objects: ``"environment_state"`` in each observation, each
     object's position (m) and quaternion (w, x, y, z), 7 numbers per object, float32, as the
@@ -156,6 +159,7 @@ class SO101SimConfig(RobotConfig):
             lockstep_action_seconds=0.0,
             lockstep_observation_seconds=0.0,
             gripper_torque_fraction=self.gripper_torque_fraction,
+            randomize=self.randomize,
         )
 
 

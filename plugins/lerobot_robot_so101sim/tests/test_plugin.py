@@ -152,6 +152,15 @@ def test_environment_state_is_opt_in_and_is_what_the_env_observes():
         robot.disconnect()
 
 
+def test_randomize_is_passed_to_the_follower_and_needs_a_scene():
+    config = parse_robot("type=so101_sim", "scene=pick_cube", "randomize=light")
+    assert config.follower_config().randomize == "light"
+    assert SO101SimConfig().randomize == "none"
+    with pytest.raises(draccus.utils.ParsingError) as info:
+        parse_robot("type=so101_sim", "randomize=light")
+    assert "needs a scene" in str(info.value.__cause__)
+
+
 # ---------------------------------------------------------------------------- actions
 def test_actions_accept_0d_tensors_and_numpy_scalars_and_ignore_other_keys():
     with lockstep() as robot:

@@ -33,9 +33,11 @@ from ..errors import DeviceNotConnectedError, RobotConfigError
 from ..scenes import (
     SCENE_PRESETS,
     Placement,
+    SceneRandomizer,
     TableScene,
     object_qpos,
     place_objects,
+    randomization,
     sample_placements,
     scene_of,
 )
@@ -170,6 +172,9 @@ class RobotScene:
         self.resets = 0
         """How many resets were made."""
         self._pending: int | None = None
+        self.randomization: dict[str, Any] = {}
+        """What the last reset's domain randomisation drew (the follower's ``randomize``)."""
+        self._randomizer: SceneRandomizer | None = None
         self.observation_hook: Callable[[], None] | None = None
         """Called before each of the follower's observations, before a pending reset is made
         (the expert teleoperator sees there that LeRobot began a new episode)."""
@@ -219,13 +224,26 @@ class RobotScene:
         Raises:
             SettingError: ``seed`` is not a whole number from 0 to 2**63 - 1.
         """
-        poses = draw_placements(self.scene, seed)
-        sim = self.follower.simulation
-        with self.follower.lock:
+        seed = check_count(seed, "seed", maximum=MAX_SEED)
+        rng = np.random.default_rng(seed)
+        poses = sample_placements(self.scene.objects, rng, self.scene.keep_out)
+        follower = self.follower
+        sim = follower.simulation
+        options = randomization(getattr(follower.config, "randomize", "none"))
+        with follower.lock:
             now = sim.data.time
             sim.reset()  # arm at its initial pose, commanded to stay there; objects nominal
             sim.data.time = now  # simulated time never goes back
             place_objects(sim.model, sim.data, poses)
+            if options.active:  # drawn after the poses from the same generator, as envs do
+                rig = getattr(follower, "_rig", None)
+                renders = rig.render_models if rig is not None else []
+                if self._randomizer is None:
+                    objects = [o.name for o in self.scene.objects]
+                    self._randomizer = SceneRandomizer(sim.model, objects, options, renders)
+                for m in renders:
+                    self._randomizer.add_render_model(m)
+                self.randomization = self._randomizer.apply(rng, sim.data)
             self._pending = None
         self.placements = poses
         self.resets += 1

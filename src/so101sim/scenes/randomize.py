@@ -39,7 +39,11 @@ import numpy as np
 from ..errors import SettingError
 from ..model import arm_index
 from ..validation import check_count, check_range
+from .cameras import PRESET_CAMERAS
 
+MAX_LIGHTS = 8
+"""Light draws are made for this many lights whatever the model has (the same draws for the
+same seed in models that differ in their cameras or lights: an environment and a follower)."""
 DISTRACTOR_PREFIX = "distractor_"
 MAX_DISTRACTORS = 8
 DISTRACTOR_SIZE_M = (0.012, 0.02)
@@ -249,28 +253,33 @@ class SceneRandomizer:
                 getattr(mm, key)[:] = value
         u = rng.uniform
         # -- the look (every model)
-        nl, nc = m.nlight, m.ncam
-        scale = u(1 - o.lighting, 1 + o.lighting, nl)
-        move = u(-0.5 * o.lighting, 0.5 * o.lighting, (nl, 3))
+        scale = u(1 - o.lighting, 1 + o.lighting, MAX_LIGHTS)
+        move = u(-0.5 * o.lighting, 0.5 * o.lighting, (MAX_LIGHTS, 3))
         shift = {n: u(-o.colors, o.colors, 3) for n in [*self.objects, "table"]}
-        cam = u(-o.camera_m, o.camera_m, (nc, 3))
-        fovy = u(-o.camera_fovy_deg, o.camera_fovy_deg, nc)
+        # the preset cameras, by name (other cameras of a model stay where they are)
+        cams = {n: (u(-o.camera_m, o.camera_m, 3), float(u(-1, 1)) * o.camera_fovy_deg)
+                for n in PRESET_CAMERAS}  # fmt: skip
         for mm, base in self._base.items():
-            if mm.nlight:
-                lit = base["light_diffuse"] * scale[: mm.nlight, None]
-                mm.light_diffuse[:] = np.clip(lit, 0, 1)
-                mm.light_pos[:] = base["light_pos"] + move[: mm.nlight]
-            for name, s in shift.items():
+            n = min(mm.nlight, MAX_LIGHTS)
+            if n:
+                lit = base["light_diffuse"][:n] * scale[:n, None]
+                mm.light_diffuse[:n] = np.clip(lit, 0, 1)
+                mm.light_pos[:n] = base["light_pos"][:n] + move[:n]
+            for name, sh in shift.items():
                 ids = self._object_geoms(mm, name)
-                if name == "table" and not len(ids):
-                    ids = np.asarray(_ids(mm, mujoco.mjtObj.mjOBJ_GEOM, ["table"]), dtype=int)
-                mm.geom_rgba[ids, :3] = np.clip(base["geom_rgba"][ids, :3] + s, 0, 1)
-            if mm.ncam:
-                mm.cam_pos[:] = base["cam_pos"] + cam[: mm.ncam]
-                mm.cam_fovy[:] = base["cam_fovy"] + fovy[: mm.ncam]
+                mm.geom_rgba[ids, :3] = np.clip(base["geom_rgba"][ids, :3] + sh, 0, 1)
+            for name, (dp, df) in cams.items():
+                cid = mujoco.mj_name2id(mm, mujoco.mjtObj.mjOBJ_CAMERA, name)
+                if cid >= 0:
+                    mm.cam_pos[cid] = base["cam_pos"][cid] + dp
+                    mm.cam_fovy[cid] = base["cam_fovy"][cid] + df
+        cam = np.array([c[0] for c in cams.values()])
+        fovy = np.array([c[1] for c in cams.values()])
         drawn["lighting"] = {"scale": scale.tolist(), "move_m": move.tolist()}
         drawn["colors"] = {k: v.tolist() for k, v in shift.items()}
-        drawn["cameras"] = {"move_m": cam.tolist(), "fovy_deg": fovy.tolist()}
+        drawn["cameras"] = {
+            n: {"move_m": cam[i].tolist(), "fovy_deg": float(fovy[i])} for i, n in enumerate(cams)
+        }
         # -- the objects (sizes in every model; mass and friction in the physics model)
         sizes, masses, frictions = {}, {}, {}
         for name in self.objects:
