@@ -31,11 +31,19 @@ def columns(root) -> dict[str, np.ndarray]:
 
 
 def test_the_same_seeds_give_the_same_episodes_whatever_the_worker_count(tmp_path):
-    settings = dict(task="pick_cube", episodes=3, seed=11, environment_state=True)
+    settings = dict(
+        task="pick_cube", episodes=3, seed=11, environment_state=True, randomize="light"
+    )
     one = generate_dataset(DatasetSettings(root=str(tmp_path / "one"), workers=1, **settings))
     two = generate_dataset(DatasetSettings(root=str(tmp_path / "two"), workers=2, **settings))
     assert one.seeds == two.seeds == (11, 12, 13) and one.frames == two.frames
     a, b = columns(tmp_path / "one"), columns(tmp_path / "two")
+    metas = [
+        json.loads((tmp_path / d / "meta" / "so101sim.json").read_text()) for d in ("one", "two")
+    ]
+    assert metas[0]["randomization"] == metas[1]["randomization"]  # recorded, the same draws
+    assert sorted(metas[0]["randomization"]) == ["11", "12", "13"]
+    assert metas[0]["randomize"] == "light"
     for key in a:
         np.testing.assert_array_equal(a[key], b[key], err_msg=key)
     # each episode from its own start: the folded pose, the cube where reset(seed) puts it
