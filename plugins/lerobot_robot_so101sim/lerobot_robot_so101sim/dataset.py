@@ -170,60 +170,41 @@ def _randomize_options(preset: str) -> dict[str, Any]:
     return {} if preset == "none" else {"randomize": preset}
 
 
-def simulate_episode(settings: DatasetSettings, seed: int) -> Episode:
-    """One episode of the task's expert from ``seed`` (run in a worker)."""
-    from so101sim.envs import expert_for
-    from so101sim.envs.run import make
+def _simulate(settings: DatasetSettings, seed: int) -> tuple[Any, float]:
+    """In a worker: one episode (so101sim's, no LeRobot import) and its wall time."""
+    from so101sim.envs.run import expert_frames
 
     start = time.perf_counter()
-    env = make(
+    frames = expert_frames(
         settings.task,
-        control="joint",
-        control_hz=float(settings.fps),
-        cameras=list(settings.cameras),
+        seed,
+        fps=settings.fps,
+        cameras=tuple(settings.cameras),
         image_size=tuple(settings.image_size),
-        object_state=True,
-        joint_velocities=False,
-        quality="draft",
-        terminate_on_success=False,
-        **_randomize_options(settings.randomize),
+        randomize=settings.randomize,
+        after_success_s=settings.after_success_s,
     )
-    try:
-        inner = env.unwrapped
-        expert = expert_for(env)
-        obs, info = env.reset(seed=seed)
-        expert.reset()
-        after = round(settings.after_success_s * settings.fps)
-        states, actions, env_states = [], [], []
-        images: dict[str, list[np.ndarray]] = {c: [] for c in settings.cameras}
-        first: int | None = None
-        done = False
-        while not done:
-            action = np.asarray(expert.act(obs), dtype=np.float32)
-            states.append(np.asarray(obs["agent_pos"], dtype=np.float32))
-            actions.append(action)
-            env_states.append(np.asarray(obs["environment_state"], dtype=np.float32))
-            for cam in settings.cameras:
-                images[cam].append(obs["pixels"][cam])
-            obs, _, terminated, truncated, info = env.step(action)
-            if info["is_success"] and first is None:
-                first = len(actions)  # the frame whose state first shows success
-            done = terminated or truncated or (first is not None and len(actions) - first >= after)
-        randomization = dict(getattr(inner, "randomization", None) or {})
-        return Episode(
-            seed=seed,
-            success=first is not None,
-            success_frame=first,
-            states=np.stack(states),
-            actions=np.stack(actions),
-            environment_state=np.stack(env_states) if settings.environment_state else None,
-            images={c: np.stack(v) for c, v in images.items()},
-            randomization=_jsonable(randomization),
-            sim_seconds=len(actions) / settings.fps,
-            wall_seconds=time.perf_counter() - start,
-        )
-    finally:
-        env.close()
+    return frames, time.perf_counter() - start
+
+
+def simulate_episode(settings: DatasetSettings, seed: int) -> Episode:
+    """One episode of the task's expert from ``seed``."""
+    return _episode(settings, *_simulate(settings, seed))
+
+
+def _episode(settings: DatasetSettings, frames: Any, wall: float) -> Episode:
+    return Episode(
+        seed=frames.seed,
+        success=frames.success,
+        success_frame=frames.success_frame,
+        states=frames.states,
+        actions=frames.actions,
+        environment_state=frames.environment_state if settings.environment_state else None,
+        images=frames.images,
+        randomization=_jsonable(frames.randomization),
+        sim_seconds=len(frames.actions) / settings.fps,
+        wall_seconds=wall,
+    )
 
 
 def _jsonable(value: Any) -> Any:
@@ -238,13 +219,24 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
-def _worker_init() -> None:
-    # one thread each: the workers are the parallelism
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
+def _frames_kwargs(settings: DatasetSettings) -> dict[str, Any]:
+    return {
+        "fps": settings.fps,
+        "cameras": tuple(settings.cameras),
+        "image_size": tuple(settings.image_size),
+        "randomize": settings.randomize,
+        "after_success_s": settings.after_success_s,
+    }
 
 
 def _episodes(settings: DatasetSettings, seeds: list[int]) -> Iterator[Episode]:
-    """The episodes of ``seeds``, in that order, simulated by ``settings.workers`` workers."""
+    """The episodes of ``seeds``, in that order, simulated by ``settings.workers`` workers.
+    The workers run so101sim's :func:`~so101sim.envs.run.expert_frames` (plain arguments, so
+    they import nothing of LeRobot or of this plugin); this process turns each into an
+    :class:`Episode`."""
+    from so101sim.envs.run import expert_frames
+
+    kwargs = _frames_kwargs(settings)
     if settings.use_ray:
         try:
             import ray
@@ -256,10 +248,11 @@ def _episodes(settings: DatasetSettings, seeds: list[int]) -> Iterator[Episode]:
         if started:
             ray.init(num_cpus=settings.workers, include_dashboard=False, log_to_driver=False)
         try:
-            remote = ray.remote(num_cpus=1)(simulate_episode)
-            refs = [remote.remote(settings, s) for s in seeds]
+            remote = ray.remote(num_cpus=1)(expert_frames)
+            refs = [remote.remote(settings.task, s, **kwargs) for s in seeds]
             for ref in refs:
-                yield ray.get(ref)
+                start = time.perf_counter()
+                yield _episode(settings, ray.get(ref), time.perf_counter() - start)
         finally:
             if started:
                 ray.shutdown()
@@ -268,20 +261,21 @@ def _episodes(settings: DatasetSettings, seeds: list[int]) -> Iterator[Episode]:
         for s in seeds:
             yield simulate_episode(settings, s)
         return
-    ctx = get_context("spawn")  # MuJoCo's GL contexts and torch do not survive a fork
     ahead = 2 * settings.workers  # episodes in flight: bounds the frames held in memory
-    with ProcessPoolExecutor(settings.workers, mp_context=ctx, initializer=_worker_init) as pool:
+    ctx = get_context("spawn")  # MuJoCo's GL contexts and torch do not survive a fork
+    with ProcessPoolExecutor(settings.workers, mp_context=ctx) as pool:
         pending: list[Any] = []
         todo = iter(seeds)
         try:
             while True:
                 for s in todo:
-                    pending.append(pool.submit(simulate_episode, settings, s))
+                    pending.append(pool.submit(expert_frames, settings.task, s, **kwargs))
                     if len(pending) >= ahead:
                         break
                 if not pending:
                     return
-                yield pending.pop(0).result()
+                start = time.perf_counter()
+                yield _episode(settings, pending.pop(0).result(), time.perf_counter() - start)
         finally:
             for fut in pending:
                 fut.cancel()
