@@ -20,6 +20,7 @@ from .errors import (
     JointNameError,
     JointValueError,
     LeaderError,
+    MissingDependencyError,
     ModelError,
     MotionFileError,
     OutputPathError,

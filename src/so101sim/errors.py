@@ -154,3 +154,8 @@ class LeaderError(So101SimError, RuntimeError):
 
 class RateError(SettingError):
     """A rate (goals, frames or ticks per second) is not a finite number greater than zero."""
+
+
+class MissingDependencyError(So101SimError, ImportError):
+    """An optional package (an extra such as ``so101sim[fidelity]``, or a LeRobot plugin) that
+    the asked-for feature needs is not installed; the message says what to install."""

@@ -92,6 +92,9 @@ def _bases(tmp: Path) -> dict[str, list[str]]:
     return {
         "run": ["run", "--headless", str(motion)],
         "compare": ["compare", str(log)],
+        # without the LeRobot plugins (the core's venv) these two say what to install, exit 2
+        "dataset": ["dataset", "pick_cube", "--episodes", "1", "-o", str(tmp / "out" / "ds")],
+        "eval": ["eval", str(tmp / "policy"), "--episodes", "1"],
         "fit": ["fit", str(log), "-o", str(tmp / "out" / "arm.toml")],
         "hold": ["hold", "--headless", "--duration", "0.01"],
         "check": ["check", str(motion)],

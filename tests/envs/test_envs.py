@@ -82,6 +82,10 @@ def test_observations_are_shaped_for_lerobot_and_rgb_array_renders():
     env.close()
     no_state = gym.make(IDS[0], object_state=False)
     assert set(no_state.reset(seed=0)[0]) == {"agent_pos", "agent_vel"}
+    no_vel = gym.make(IDS[0], object_state=False, joint_velocities=False)
+    obs, _ = no_vel.reset(seed=0)
+    assert set(obs) == set(no_vel.observation_space.spaces) == {"agent_pos"}
+    np.testing.assert_array_equal(obs["agent_pos"], no_state.reset(seed=0)[0]["agent_pos"])
 
 
 def test_reset_with_a_seed_is_deterministic():

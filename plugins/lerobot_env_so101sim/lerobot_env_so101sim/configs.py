@@ -13,13 +13,25 @@ runs here unchanged: give the cameras the size they were recorded at
 (``--env.observation_height``, ``--env.observation_width``) and the dataset's rate
 (``--env.fps``, 30 by default as ``--dataset.fps``).
 
+**Matching the policy.** Given a policy (``lerobot-eval --policy.path=...``, read from
+LeRobot's command line, or ``--env.policy_path=...``; or :meth:`SO101SimEnvConfig.match_policy`
+in code), the environment takes its cameras (``observation.images.<camera>``), their image
+size and whether it gives ``observation.environment_state`` from the policy's input features,
+so it observes what the policy was trained on. A setting given explicitly that differs from
+the policy (``--env.observation_height=480`` for a policy trained on 96x96 images, a camera
+list without one the policy needs), or an input the environment cannot give (a camera that is
+not a preset, a state that is not the six joints), is refused with a message naming the
+setting to change. The observations hold exactly the declared features (``agent_pos``, the
+cameras' ``pixels``, ``environment_state`` when asked): the joint velocities the Gymnasium
+environment can give (``agent_vel``), which LeRobot has no key for, are turned off.
+
 Every value is checked when the config is made (a bad command line fails before any
 environment is built), by so101sim's own checks.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from lerobot.configs import FeatureType, PolicyFeature
@@ -39,6 +51,9 @@ ENV_MODULE = "so101sim.envs"
 TASK_SCENES = {"PickCube-v0": "pick_cube", "CubeToBowl-v0": "cube_to_bowl"}
 """Each task (``--env.task``) and the scene preset it is played in."""
 MAX_IMAGE_SIDE = 4096
+DEFAULT_CAMERAS = ("front", "wrist")
+DEFAULT_SIZE = (480, 640)
+STATE_SIZE = len(JOINT_NAMES)
 
 
 @dataclass
@@ -50,17 +65,26 @@ class SO101SimEnvConfig(EnvConfig):
     """Environment steps (policy actions) per simulated second: the dataset's fps."""
     episode_length: int | None = None
     """Steps before an episode is truncated (None: the task's time limit, 8 or 12 s)."""
-    cameras: list[str] = field(default_factory=lambda: ["front", "wrist"])
-    """Preset cameras whose images the policy sees (``observation.images.<camera>``)."""
-    observation_height: int = 480
-    observation_width: int = 640
+    cameras: list[str] | None = None
+    """Preset cameras whose images the policy sees (``observation.images.<camera>``); None:
+    the policy's, or ``[front, wrist]`` without a policy."""
+    observation_height: int | None = None
+    observation_width: int | None = None
+    """The cameras' image size; None: the policy's, or 480 x 640 without a policy."""
     quality: str = "auto"
     """Meshes the cameras draw: ``auto`` (draft on a CPU, full on a GPU, as the robot
     plugin's cameras), ``draft`` or ``full``."""
-    object_state: bool = False
-    """Also give the objects' poses (``observation.environment_state``, 7 numbers each)."""
+    object_state: bool | None = None
+    """Also give the objects' poses (``observation.environment_state``, 7 numbers each);
+    None: if the policy takes them (off without a policy)."""
+    policy_path: str | None = None
+    """The policy whose input features the environment matches (a folder with its
+    ``config.json``, or a Hub id); None: ``--policy.path`` of LeRobot's command line, if any."""
     reward: str = "dense"
     """``dense`` (0..1) or ``sparse`` (1 on success)."""
+    randomize: str = "none"
+    """Domain randomisation per episode: ``none``, ``light`` or ``full`` (so101sim's presets,
+    ``gym.make(..., randomize=...)``)."""
     render_mode: str = "rgb_array"
     visualization_height: int = 480
     visualization_width: int = 640
@@ -71,17 +95,121 @@ class SO101SimEnvConfig(EnvConfig):
         self.fps = int(check_count(self.fps, "fps", minimum=1, maximum=500, unit=" Hz"))
         if self.episode_length is not None:
             check_count(self.episode_length, "episode_length", minimum=1, maximum=1_000_000)
-        if not isinstance(self.cameras, list | tuple):
-            raise SettingError(f"cameras = {self.cameras!r}; expected a list such as [front]")
-        for cam in self.cameras:
-            check_choice(cam, "camera", PRESET_CAMERAS)
+        self._given = {
+            n for n in ("cameras", "observation_height", "observation_width", "object_state")
+            if getattr(self, n) is not None
+        }  # fmt: skip
+        if self.cameras is not None:
+            if not isinstance(self.cameras, list | tuple):
+                raise SettingError(f"cameras = {self.cameras!r}; expected a list such as [front]")
+            for cam in self.cameras:
+                check_choice(cam, "camera", PRESET_CAMERAS)
+            self.cameras = list(self.cameras)
         for name in ("observation_height", "observation_width"):
-            check_count(getattr(self, name), name, minimum=2, maximum=MAX_IMAGE_SIDE, even=True)
+            if getattr(self, name) is not None:
+                check_count(getattr(self, name), name, minimum=2, maximum=MAX_IMAGE_SIDE, even=True)
+        if self.object_state is not None and not isinstance(self.object_state, bool):
+            raise SettingError(f"object_state = {self.object_state!r}; expected true or false")
         for name in ("visualization_height", "visualization_width"):
             check_count(getattr(self, name), name, minimum=2, maximum=MAX_IMAGE_SIDE, even=True)
         check_choice(self.quality, "quality", QUALITY_CHOICES)
         check_choice(self.reward, "reward", ("dense", "sparse"))
+        check_choice(self.randomize, "randomize", ("none", "light", "full"))
         check_choice(self.render_mode, "render_mode", ("rgb_array",))
+        self._fill_defaults()
+        path = self.policy_path if self.policy_path is not None else _policy_path_argument()
+        if path:
+            self.match_policy(_policy_inputs(path), source=f"the policy at {path}")
+        self.features, self.features_map = self._features()
+
+    def _fill_defaults(self) -> None:
+        if "cameras" not in self._given:
+            self.cameras = list(DEFAULT_CAMERAS)
+        if "observation_height" not in self._given:
+            self.observation_height = DEFAULT_SIZE[0]
+        if "observation_width" not in self._given:
+            self.observation_width = DEFAULT_SIZE[1]
+        if "object_state" not in self._given:
+            self.object_state = False
+
+    def match_policy(self, inputs: Any, *, source: str = "the policy") -> None:
+        """Take the cameras, image size and environment state from a policy's input
+        features (a ``PreTrainedConfig``, or its ``input_features`` dict): settings left
+        unset follow the policy; settings given that differ are refused.
+
+        Raises:
+            SettingError: the policy needs what this environment cannot give, or a setting
+                given explicitly differs from the policy (the message names it).
+        """
+        features = getattr(inputs, "input_features", inputs)
+        if not isinstance(features, dict):
+            raise SettingError(f"{source}: input features {features!r}; expected a dict")
+        cams: dict[str, tuple[int, ...]] = {}
+        env_state: tuple[int, ...] | None = None
+        for key, ft in features.items():
+            shape = tuple(int(v) for v in getattr(ft, "shape", ()))
+            if key.startswith(f"{OBS_IMAGES}."):
+                cams[key.removeprefix(f"{OBS_IMAGES}.")] = shape
+            elif key == OBS_STATE:
+                if shape != (STATE_SIZE,):
+                    raise SettingError(
+                        f"{source} takes {OBS_STATE} of shape {shape}; so101sim's environment "
+                        f"gives the six joint positions ({STATE_SIZE},): train on a dataset "
+                        f"recorded with --robot.type=so101_sim"
+                    )
+            elif key == OBS_ENV_STATE:
+                env_state = shape
+            else:
+                raise SettingError(
+                    f"{source} takes {key!r}, which so101sim's environment does not give; "
+                    f"expected {OBS_STATE}, {OBS_ENV_STATE} and {OBS_IMAGES}.<camera> "
+                    f"(map other names with lerobot-eval's --rename_map)"
+                )
+        for cam in cams:
+            if cam not in PRESET_CAMERAS:
+                raise SettingError(
+                    f"{source} takes {OBS_IMAGES}.{cam}; so101sim's environment has the cameras "
+                    f"{', '.join(PRESET_CAMERAS)}: map the name with lerobot-eval's --rename_map "
+                    f'(e.g. --rename_map=\'{{"{OBS_IMAGES}.{next(iter(PRESET_CAMERAS))}": '
+                    f'"{OBS_IMAGES}.{cam}"}}\')'
+                )
+        sizes = {(s[-2], s[-1]) if len(s) == 3 and s[0] in (1, 3) else s[:2] for s in cams.values()}
+        if len(sizes) > 1:
+            raise SettingError(
+                f"{source} takes images of several sizes {sorted(sizes)}; so101sim's environment "
+                f"renders every camera at one size (--env.observation_height/_width)"
+            )
+        want_cams = list(cams)
+        if "cameras" in self._given and sorted(self.cameras or []) != sorted(want_cams):
+            raise SettingError(
+                f"--env.cameras={self.cameras} but {source} takes the cameras {want_cams}; "
+                f"give --env.cameras={want_cams!r} or leave --env.cameras out"
+            )
+        self.cameras = want_cams
+        if sizes:
+            h, w = sizes.pop()
+            for name, value in (("observation_height", h), ("observation_width", w)):
+                if name in self._given and getattr(self, name) != value:
+                    raise SettingError(
+                        f"--env.{name}={getattr(self, name)} but {source} was trained on "
+                        f"{h}x{w} images (height x width); give --env.{name}={value} or leave "
+                        f"it out"
+                    )
+            self.observation_height, self.observation_width = h, w
+        objects = len(SCENE_PRESETS[TASK_SCENES[str(self.task)]].objects)
+        if env_state is not None and env_state != (7 * objects,):
+            raise SettingError(
+                f"{source} takes {OBS_ENV_STATE} of shape {env_state}; {self.task} gives "
+                f"({7 * objects},) (7 per object): it was trained on another task"
+            )
+        wants = env_state is not None
+        if "object_state" in self._given and self.object_state != wants:
+            raise SettingError(
+                f"--env.object_state={str(self.object_state).lower()} but {source} "
+                f"{'takes' if wants else 'does not take'} {OBS_ENV_STATE}; give "
+                f"--env.object_state={str(wants).lower()} or leave it out"
+            )
+        self.object_state = wants
         self.features, self.features_map = self._features()
 
     def _features(self) -> tuple[dict[str, PolicyFeature], dict[str, str]]:
@@ -96,8 +224,8 @@ class SO101SimEnvConfig(EnvConfig):
             state = PolicyFeature(type=FeatureType.ENV, shape=(7 * objects,))
             features["environment_state"] = state
             names["environment_state"] = OBS_ENV_STATE
-        shape = (self.observation_height, self.observation_width, 3)
-        for cam in self.cameras:
+        shape = (int(self.observation_height or 0), int(self.observation_width or 0), 3)
+        for cam in self.cameras or []:
             features[f"pixels/{cam}"] = PolicyFeature(type=FeatureType.VISUAL, shape=shape)
             names[f"pixels/{cam}"] = f"{OBS_IMAGES}.{cam}"
         return features, names
@@ -115,20 +243,46 @@ class SO101SimEnvConfig(EnvConfig):
         kwargs: dict[str, Any] = {
             "control": "joint",
             "control_hz": float(self.fps),
-            "cameras": list(self.cameras),
+            "cameras": list(self.cameras or []),
             "image_size": (self.observation_height, self.observation_width),
             "quality": self.quality,
-            "object_state": self.object_state,
+            "object_state": bool(self.object_state),
+            "joint_velocities": False,  # LeRobot has no key for them: not a declared feature
             "reward": self.reward,
             "render_mode": self.render_mode,
             "render_size": (self.visualization_height, self.visualization_width),
             "terminate_on_success": True,
         }
+        if self.randomize != "none":
+            kwargs["randomize"] = self.randomize
         if self.episode_length is not None:
             kwargs["episode_seconds"] = check_range(
                 self.episode_length / self.fps, "episode_length / fps", low=0.0, high=3600.0
             )
         return kwargs
+
+
+def _policy_path_argument() -> str | None:
+    """``--policy.path`` of LeRobot's command line (lerobot-eval), if any."""
+    from lerobot.configs import parser
+
+    try:
+        return parser.get_path_arg("policy")
+    except Exception:  # not LeRobot's command line: no policy given there
+        return None
+
+
+def _policy_inputs(path: str) -> dict[str, PolicyFeature]:
+    """The input features of the policy saved at ``path``."""
+    from lerobot.configs.policies import PreTrainedConfig
+
+    try:
+        return dict(PreTrainedConfig.from_pretrained(path).input_features)
+    except Exception as exc:
+        raise SettingError(
+            f"cannot read the policy's config at {path!r} ({exc}); expected a folder with a "
+            f"LeRobot policy's config.json (--policy.path or --env.policy_path)"
+        ) from exc
 
 
 @EnvConfig.register_subclass("so101sim_pick_cube")

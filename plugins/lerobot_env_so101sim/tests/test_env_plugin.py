@@ -126,3 +126,60 @@ def test_the_features_are_those_the_robot_plugin_records():
     for cam in ("front", "wrist"):
         h, w, c = recorded[f"observation.images.{cam}"]["shape"]
         assert env[f"observation.images.{cam}"].shape == (c, h, w)
+
+
+# ---------------------------------------------------------------------------- the policy's inputs
+def test_the_env_takes_the_policys_cameras_sizes_and_state_and_refuses_a_mismatch(tmp_path):
+    """Given a policy (--env.policy_path; lerobot-eval's --policy.path the same way), the env
+    observes what it was trained on: its cameras, image size and environment state; a setting
+    given that differs is refused, naming the setting to change."""
+    policy = tmp_path / "policy"
+    build(SO101SimPickCubeEnv(observation_height=96, observation_width=96, cameras=["wrist"],
+                              object_state=True), policy)  # fmt: skip
+    cfg = parse_env("type=so101sim_pick_cube", f"policy_path={policy}")
+    assert cfg.cameras == ["wrist"] and (cfg.observation_height, cfg.observation_width) == (96, 96)
+    assert cfg.object_state is True
+    assert set(cfg.features_map.values()) == {
+        "action", "observation.state", "observation.environment_state", "observation.images.wrist"
+    }  # fmt: skip
+    vec = make_env(cfg, n_envs=1)["so101sim_pick_cube"][0]
+    try:
+        obs, _ = vec.reset(seed=[0])
+        declared = {k for k in cfg.features if k != "action"}
+        flat = {f"pixels/{c}" for c in obs.get("pixels", {})} | (set(obs) - {"pixels"})
+        assert flat == declared  # exactly the declared features: no agent_vel
+        assert obs["pixels"]["wrist"].shape == (1, 96, 96, 3)
+    finally:
+        vec.close()
+    for flag, setting in (
+        ("observation_height=480", "--env.observation_height=96"),
+        ("cameras=[front,wrist]", "--env.cameras=['wrist']"),
+        ("object_state=false", "--env.object_state=true"),
+    ):
+        with pytest.raises(draccus.utils.ParsingError) as info:
+            parse_env("type=so101sim_pick_cube", f"policy_path={policy}", flag)
+        assert isinstance(info.value.__cause__, SettingError)
+        assert setting in str(info.value.__cause__), str(info.value.__cause__)
+    with pytest.raises(SettingError, match="--rename_map"):
+        SO101SimPickCubeEnv().match_policy({"observation.images.top": cfg.features["pixels/wrist"]})
+    with pytest.raises(SettingError, match="six joint positions"):
+        SO101SimPickCubeEnv().match_policy({"observation.state": type(cfg.features["action"])(
+            type=cfg.features["action"].type, shape=(7,))})  # fmt: skip
+    # without a policy: the defaults, as before
+    plain = parse_env("type=so101sim_pick_cube")
+    assert plain.cameras == ["front", "wrist"] and plain.observation_height == 480
+    assert plain.object_state is False
+
+
+def test_wilson_interval_and_the_randomize_option():
+    from lerobot_env_so101sim.evaluate import wilson_interval
+
+    assert wilson_interval(0, 2) == (0.0, pytest.approx(0.6576, abs=1e-4))
+    low, high = wilson_interval(40, 50)
+    assert low == pytest.approx(0.6697, abs=1e-4) and high == pytest.approx(0.8876, abs=1e-4)
+    assert wilson_interval(0, 0) == (0.0, 1.0)
+    cfg = parse_env("type=so101sim_pick_cube", "randomize=light")
+    assert cfg.gym_kwargs["randomize"] == "light"
+    assert "randomize" not in parse_env("type=so101sim_pick_cube").gym_kwargs
+    with pytest.raises(draccus.utils.ParsingError):
+        parse_env("type=so101sim_pick_cube", "randomize=heavy")

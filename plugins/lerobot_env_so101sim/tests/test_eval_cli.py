@@ -26,14 +26,14 @@ def _lerobot_eval() -> str:
 
 
 def test_lerobot_eval_runs_two_episodes_of_a_local_policy(tmp_path):
-    size = {"observation_height": 48, "observation_width": 64}
+    """The policy sees only the front camera at 48x64: lerobot-eval's env takes its cameras
+    and image size from --policy.path (none given on the command line)."""
+    size = {"observation_height": 48, "observation_width": 64, "cameras": ["front"]}
     build(SO101SimPickCubeEnv(**size), tmp_path / "policy")
     out = tmp_path / "eval"
     args = [
         _lerobot_eval(),
         "--env.type=so101sim_pick_cube",
-        "--env.observation_height=48",
-        "--env.observation_width=64",
         "--env.visualization_height=96",
         "--env.visualization_width=128",
         f"--env.episode_length={STEPS}",

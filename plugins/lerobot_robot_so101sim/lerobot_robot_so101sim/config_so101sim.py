@@ -107,10 +107,28 @@ class SO101SimConfig(RobotConfig):
     added to the simulated arm's scene. None: the arm alone."""
     initial_pose: dict[str, float] = field(default_factory=lambda: dict(STARTING_POSE))
     gripper_torque_fraction: float = 0.5
+    randomize: str = "none"
+    """Domain randomisation of the ``scene`` at each new take: ``none``, ``light`` or ``full``
+    (so101sim's presets; the same draws as ``gym.make(..., randomize=...)`` for the same seed)."""
+    environment_state: bool = False
+    """Also observe the scene's objects: ``"environment_state"`` in each observation, each
+    object's position (m) and quaternion (w, x, y, z), 7 numbers per object, float32, as the
+    env plugin's ``observation.environment_state``. Needs ``scene``. (``lerobot-record`` 0.6
+    stores every non-image feature of a robot in ``observation.state``, so it cannot record it
+    as a separate feature: ``so101sim dataset --environment-state`` does.)"""
 
     def __post_init__(self) -> None:
         super().__post_init__()
         self.fps = check_fps(self.fps)
+        if not isinstance(self.environment_state, bool):
+            raise RobotConfigError(
+                f"environment_state is {self.environment_state!r}; expected true or false"
+            )
+        if self.environment_state and self.scene is None:
+            raise RobotConfigError(
+                "environment_state needs a scene with objects; expected --robot.scene=pick_cube "
+                "or cube_to_bowl with --robot.environment_state=true"
+            )
         self.follower_config()  # every field checked now, by so101sim
 
     def follower_config(self) -> SO101SimFollowerConfig:
@@ -141,6 +159,7 @@ class SO101SimConfig(RobotConfig):
             lockstep_action_seconds=0.0,
             lockstep_observation_seconds=0.0,
             gripper_torque_fraction=self.gripper_torque_fraction,
+            randomize=self.randomize,
         )
 
 

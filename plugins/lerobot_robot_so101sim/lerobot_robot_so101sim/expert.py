@@ -13,16 +13,25 @@ objects' real poses in that robot's simulation (:func:`so101sim.envs.sim_task`,
 :func:`so101sim.envs.expert_for`).
 
 **Takes and episodes.** A take is one run of the expert from a new start: the arm at its start
-pose, the objects at poses drawn from ``seed + k`` for take ``k``. It lasts
-``config.take_calls`` = ``(episode_time_s + reset_time_s) * fps`` calls, counted as the motion
-teleoperator counts them (the calls of ``lerobot-record``'s reset period count too); at its
-last call the scene's reset is asked for, and the robot makes it before its next observation,
-so the next episode's first frame shows the next take's start. LeRobot ends an episode after
-``episode_time_s`` of wall-clock time, so an episode holds the whole take when its loop keeps
-up; when it does not (frames lost to a busy machine) and there is no reset period, the
-robot's first observation ``episode_time_s`` or more after the take's first one (LeRobot's
-next episode) ends the take there and makes the next take's reset before it reads the state,
-so that episode too starts at a new take's start (a warning says the take was cut short).
+pose, the objects at poses drawn from ``seed + k`` for take ``k``.
+
+Under ``lerobot-record`` a take is tied to LeRobot's episode, not to a count of calls: the
+teleoperator finds LeRobot's record loop on the call stack (:func:`lerobot_episode`: the
+``record_loop`` frame's ``start_episode_t``, which LeRobot sets anew for each episode, and its
+``dataset``, None during the reset period). The first observation of each recorded episode
+ends the take before it and makes the next take's reset before the state is read, so every
+episode starts at its take's start, and a take never goes on into the next episode nor snaps
+back inside one, however slowly the loop runs. When the expert's script is over the arm holds
+still until LeRobot ends the episode; during the reset period it holds still too. A take whose
+task had not succeeded when its episode ended (a loop too slow for ``--dataset.episode_time_s``,
+or an expert that failed) is marked failed (``TakeRecord.failed``, ``failed_episodes``) with a
+warning that says which episode, why and what to change.
+
+Outside LeRobot's record loop (a hand-written loop, ``lerobot-teleoperate``) a take lasts
+``config.take_calls`` = ``(episode_time_s + reset_time_s) * fps`` calls; at its last call the
+next take's reset is asked for (made before the robot's next observation). Without a reset
+period, the robot's first observation ``episode_time_s`` or more (wall clock) after the take's
+first one also ends the take there (a loop that fell behind).
 
 ``takes`` records each take (:class:`TakeRecord`: seed, start poses, calls, success, when);
 each is logged when it ends.
@@ -31,6 +40,7 @@ each is logged when it ends.
 from __future__ import annotations
 
 import logging
+import sys
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -70,6 +80,46 @@ class TakeRecord:
     """The take ended before its ``take_calls`` (the recording loop fell behind)."""
     details: dict[str, float] = field(default_factory=dict)
     """The task's figures at the take's last call (e.g. ``cube_rise_m``)."""
+    episode: int | None = None
+    """LeRobot's episode (from 0, as recorded) that holds this take; None outside LeRobot's
+    record loop."""
+    failed: bool = False
+    """The take's episode ended before the task succeeded: the episode holds no whole
+    demonstration (``message`` says why)."""
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class LeRobotEpisode:
+    """Where LeRobot's record loop is: which episode (its ``start_episode_t``), whether frames
+    are being recorded (False in the reset period), its length (s) and rate."""
+
+    start: float
+    recording: bool
+    control_time_s: float
+    fps: float
+
+
+def lerobot_episode(depth: int = 16) -> LeRobotEpisode | None:
+    """LeRobot's ``record_loop`` that called us, read from its frame's variables (LeRobot tells
+    a teleoperator nothing of its episodes); None when not called from one."""
+    frame = sys._getframe(1)
+    for _ in range(depth):
+        frame = frame.f_back  # type: ignore[assignment]
+        if frame is None:
+            return None
+        if frame.f_code.co_name == "record_loop" and "start_episode_t" in frame.f_locals:
+            local = frame.f_locals
+            try:
+                return LeRobotEpisode(
+                    start=float(local["start_episode_t"]),
+                    recording=local.get("dataset") is not None,
+                    control_time_s=float(local.get("control_time_s") or 0.0),
+                    fps=float(local.get("fps") or 0.0),
+                )
+            except (TypeError, ValueError):
+                return None
+    return None
 
 
 class SO101SimExpert(SimLeader):
@@ -93,12 +143,21 @@ class SO101SimExpert(SimLeader):
         self._running = False  # a take is under way
         self._wall0 = 0.0
         self._obs_wall0: float | None = None  # the wall time of the next take's first observation
+        self._episode_start: float | None = None  # LeRobot's start_episode_t of the take's episode
+        self._episodes = 0  # LeRobot's recorded episodes seen
+        self._last: dict[str, float] | None = None  # the last targets (held between takes)
+
+    @property
+    def failed_episodes(self) -> list[int]:
+        """LeRobot's episodes (from 0) whose take failed (see :attr:`TakeRecord.failed`)."""
+        return [t.episode for t in self.takes if t.failed and t.episode is not None]
 
     def connect(self, calibrate: bool = True) -> None:
         """Find the robot with the task's scene: connected already, or when it connects."""
         if self._connected:
             raise DeviceAlreadyConnectedError(f"{self} is already connected.")
         self.takes, self._take, self._running, self._obs_wall0 = [], 0, False, None
+        self._episode_start, self._episodes, self._last = None, 0, None
         self._follower = self._scene = self._task = self._expert = None
         self._connected = True
         try:
@@ -119,25 +178,21 @@ class SO101SimExpert(SimLeader):
         if self._follower is None:
             with lerobot_errors():
                 self._attach(find_follower(self.config.task, mode=MODE))
+        episode = lerobot_episode()
+        if episode is not None:
+            return self._lerobot_action(episode)
         now = time.perf_counter()
         if self._running and self._fell_behind(now, late=0.5 / self.config.fps):
             self._end_take(cut_short=True)  # no observation told (a loop that does not observe)
-        scene, task, expert = self._scene, self._task, self._expert
-        assert scene is not None and task is not None and expert is not None
+        scene = self._scene
+        assert scene is not None
         scene.apply_pending()  # the robot made it already if it observed since
         if not self._running:
             self._start_take(now)
-        record = self.takes[-1]
-        with self._follower.lock:
-            target = expert.act()
-            ev = task.evaluate()
-        if ev.success and not record.success:
-            record.success, record.success_call = True, record.calls
-        record.calls += 1
-        record.attempts, record.details = expert.attempts, dict(ev.details)
-        if record.calls >= self.config.take_calls:
+        action = self._step()
+        if self.takes[-1].calls >= self.config.take_calls:
             self._end_take(cut_short=False)
-        return dict(zip(MOTOR_KEYS, (float(v) for v in target), strict=True))
+        return action
 
     def disconnect(self) -> None:
         if not self._connected:
@@ -146,12 +201,85 @@ class SO101SimExpert(SimLeader):
             self._stop_listening()
             self._stop_listening = None
         if self._running:
-            self._end_take(cut_short=True, reset=False)
+            if self.takes[-1].episode is not None:
+                self._end_episode_take(None)
+            else:
+                self._end_take(cut_short=True, reset=False)
         if self._scene is not None and self._scene.observation_hook == self._before_observation:
             self._scene.observation_hook = None
         self._connected = False
 
     # ------------------------------------------------------------------ internals
+    def _step(self) -> dict[str, float]:
+        """The expert's next targets, the take's record updated."""
+        task, expert = self._task, self._expert
+        assert task is not None and expert is not None
+        record = self.takes[-1]
+        with self._follower.lock:
+            target = expert.act()
+            ev = task.evaluate()
+        if ev.success and not record.success:
+            record.success, record.success_call = True, record.calls
+        record.calls += 1
+        record.attempts, record.details = expert.attempts, dict(ev.details)
+        self._last = dict(zip(MOTOR_KEYS, (float(v) for v in target), strict=True))
+        return dict(self._last)
+
+    def _hold(self) -> dict[str, float]:
+        """Hold still: the last targets (the arm's commanded targets before any)."""
+        if self._last is None:
+            with self._follower.lock:
+                now = self._follower.simulation.commanded_array()
+            self._last = dict(zip(MOTOR_KEYS, (float(v) for v in now), strict=True))
+        return dict(self._last)
+
+    def _lerobot_action(self, episode: LeRobotEpisode) -> dict[str, float]:
+        """``get_action`` inside LeRobot's record loop: the take is the episode's."""
+        scene = self._scene
+        assert scene is not None
+        if not episode.recording:
+            return self._hold()  # the reset period: nothing recorded, the arm holds
+        if episode.start != self._episode_start:  # the loop did not observe first: do it here
+            self._new_episode(episode)
+        scene.apply_pending()
+        if not self._running:
+            self._start_take(time.perf_counter())
+            self.takes[-1].episode = self._episodes - 1
+        return self._step()
+
+    def _new_episode(self, episode: LeRobotEpisode) -> None:
+        """LeRobot began recording a new episode: end the take under way (judged), ask for
+        the next take's reset (made before this observation reads the state)."""
+        if self._running:
+            self._end_episode_take(episode)
+        elif self._scene is not None and self._scene.pending is None and self.takes:
+            self._scene.request_reset(self._seed(self._take))
+        self._episode_start = episode.start
+        self._episodes += 1
+
+    def _end_episode_take(self, episode: LeRobotEpisode | None) -> None:
+        """The take of the episode that just ended: failed unless the task succeeded in it."""
+        record = self.takes[-1]
+        if not record.success:
+            rate = ""
+            if episode is not None and episode.control_time_s > 0 and episode.fps > 0:
+                want = round(episode.control_time_s * episode.fps)
+                rate = (
+                    f" in {record.calls} frames ({want} at {episode.fps:g} fps in "
+                    f"{episode.control_time_s:g} s: the loop ran at "
+                    f"{record.calls / episode.control_time_s:.1f} Hz)"
+                )
+            record.failed = True
+            record.message = (
+                f"episode {record.episode} (take {record.index}, seed {record.seed}) holds no "
+                f"whole demonstration: the task did not succeed before LeRobot ended the "
+                f"episode{rate}; expected success within the episode: drop this episode from the "
+                f"dataset, and give a longer --dataset.episode_time_s, fewer or smaller cameras, "
+                f"or a quieter machine"
+            )
+            log.warning("%s: %s", self, record.message)
+        self._end_take(cut_short=False)
+
     def _on_connect(self, follower: Any) -> None:
         """A follower connected: take it if it has the task's scene (and the teleoperator
         has none yet); the first take's reset is then made before its first observation."""
@@ -186,6 +314,11 @@ class SO101SimExpert(SimLeader):
         observation ``episode_time_s`` or more after the take's first one is LeRobot's next
         episode's first (its loop ended the last one by the wall clock), so the take ends here
         and the next one's reset is made before this observation reads the state."""
+        episode = lerobot_episode()
+        if episode is not None:
+            if episode.recording and episode.start != self._episode_start:
+                self._new_episode(episode)
+            return
         now = time.perf_counter()
         if self._running and self._fell_behind(now):
             self._end_take(cut_short=True)
@@ -226,4 +359,4 @@ class SO101SimExpert(SimLeader):
         )  # fmt: skip
 
 
-__all__ = ["SO101SimExpert", "TakeRecord"]
+__all__ = ["LeRobotEpisode", "SO101SimExpert", "TakeRecord", "lerobot_episode"]

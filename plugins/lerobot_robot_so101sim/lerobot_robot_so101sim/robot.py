@@ -34,7 +34,7 @@ from typing import Any
 from lerobot.robots import Robot
 
 from so101sim.robot import SO101SimFollower
-from so101sim.robot.scene import scene_resets
+from so101sim.robot.scene import robot_scene, scene_resets
 
 from .camera import SO101SimCamera
 from .config_so101sim import ROBOT_TYPE, SO101SimConfig
@@ -43,6 +43,8 @@ from .errors import lerobot_errors, raises_lerobot_errors
 log = logging.getLogger(__name__)
 
 SUFFIX = ".pos"
+ENVIRONMENT_STATE = "environment_state"
+"""The observation's key for the objects' state (``--robot.environment_state=true``)."""
 
 
 def _scalar(value: Any) -> Any:
@@ -134,7 +136,17 @@ class SO101Sim(Robot):
         resets = scene_resets(self.follower)
         if resets != self._resets:  # a new take on the scene: its frames count from here,
             self._resets, self._actions, self._t0 = resets, 0, self.follower.time  # as in envs
+        if self.config.environment_state:
+            obs[ENVIRONMENT_STATE] = robot_scene(self.follower).environment_state()
         return obs
+
+    @property
+    def environment_state_size(self) -> int:
+        """The length of ``observation["environment_state"]`` (7 per object; 0 when
+        ``environment_state`` is off)."""
+        if not self.config.environment_state:
+            return 0
+        return robot_scene(self.follower).state_size
 
     @raises_lerobot_errors
     def send_action(self, action: dict[str, Any]) -> dict[str, Any]:

@@ -202,3 +202,73 @@ def replay_succeeds(actions: np.ndarray, states: np.ndarray, seed: int) -> None:
         assert worst < 0.05, f"episode {seed}: replayed states {worst:.3f} deg off the recorded"
     finally:
         env.close()
+
+
+# ---------------------------------------------------------------------------- LeRobot's loop
+def test_takes_follow_lerobots_episodes_however_slow_the_loop(tmp_path):
+    """LeRobot's own record_loop and dataset writer, three 4 s episodes, the second one slowed
+    down by a sleep before every observation (about 9 Hz instead of 30): every episode starts
+    at its take's start pose and holds that one take (no jump back to the start inside an
+    episode, no take going on into the next); the slow one is marked failed with a message,
+    the others hold a whole demonstration (the cube lifted)."""
+    import time as wall
+
+    from lerobot.datasets import LeRobotDataset
+    from lerobot.processor import make_default_processors
+    from lerobot.scripts.lerobot_record import record_loop
+    from lerobot.utils.feature_utils import hw_to_dataset_features
+
+    teleop_actions, robot_actions, observations = make_default_processors()
+    config = SO101SimExpertConfig(task="pick_cube", episode_time_s=4.0, seed=7)
+    teleop, arm = make_teleoperator_from_config(config), robot()
+    features = {
+        **hw_to_dataset_features(arm.action_features, "action", use_video=False),
+        **hw_to_dataset_features(arm.observation_features, "observation", use_video=False),
+    }
+    dataset = LeRobotDataset.create(
+        REPO_ID, FPS, root=tmp_path / "ds", robot_type=arm.name, features=features, use_videos=False
+    )
+    get_observation = arm.get_observation
+    slow = [False]
+
+    def observe():
+        if slow[0]:
+            wall.sleep(0.08)
+        return get_observation()
+
+    arm.get_observation = observe  # type: ignore[method-assign]
+    events = {"exit_early": False, "rerecord_episode": False, "stop_recording": False}
+    teleop.connect()
+    arm.connect()
+    try:
+        for episode in range(3):
+            slow[0] = episode == 1
+            record_loop(
+                robot=arm, events=events, fps=FPS, teleop_action_processor=teleop_actions,
+                robot_action_processor=robot_actions, robot_observation_processor=observations,
+                dataset=dataset, teleop=teleop, control_time_s=4.0, single_task="pick",
+            )  # fmt: skip
+            dataset.save_episode()
+    finally:
+        teleop.disconnect()
+        arm.disconnect()
+    dataset.finalize()
+    takes = teleop.takes
+    assert [t.episode for t in takes] == [0, 1, 2]
+    assert [t.seed for t in takes] == [7, 8, 9]
+    assert [t.failed for t in takes] == [False, True, False]
+    assert teleop.failed_episodes == [1]
+    assert "episode 1" in takes[1].message and "--dataset.episode_time_s" in takes[1].message
+    loaded = LeRobotDataset(REPO_ID, root=tmp_path / "ds")
+    index = np.asarray(loaded.hf_dataset["episode_index"])
+    states = np.stack(loaded.hf_dataset["observation.state"]).astype(float)
+    for episode, take in enumerate(takes):
+        s = states[index == episode]
+        assert len(s) == take.calls  # the take is the whole episode
+        np.testing.assert_allclose(s[0], START, atol=0.5)  # from the start pose
+        # the folded pose is never seen again once left: no snap back to the start inside
+        left = np.flatnonzero(np.abs(s - START).max(axis=1) > 5.0)
+        assert len(left) and not np.any(np.abs(s[left[0] :] - START).max(axis=1) < 1.0)
+        assert np.abs(np.diff(s, axis=0)).max() < 15.0  # no jump between frames
+    assert len(states[index == 1]) < 0.6 * len(states[index == 0])  # it was slow
+    assert takes[0].success and takes[2].success and not takes[1].success

@@ -121,6 +121,46 @@ def test_robot_scene_puts_the_presets_objects_in_the_robots_scene():
     assert "pick_cube, cube_to_bowl" in str(info.value.__cause__)
 
 
+def test_environment_state_is_opt_in_and_is_what_the_env_observes():
+    """--robot.environment_state=true: each observation holds the objects' poses as the env
+    plugin's observation.environment_state (7 per object), read from the robot's own
+    simulation; it needs a scene; off by default."""
+    from so101sim.envs import CubeToBowlEnv
+    from so101sim.robot.scene import robot_scene
+
+    assert SO101SimConfig().environment_state is False
+    with pytest.raises(draccus.utils.ParsingError) as info:
+        parse_robot("type=so101_sim", "environment_state=true")
+    assert "--robot.scene" in str(info.value.__cause__)
+    robot = lockstep(scene="cube_to_bowl", environment_state=True)
+    robot.connect()
+    try:
+        robot_scene(robot.follower).reset(5)
+        obs = robot.get_observation()
+        state = obs["environment_state"]
+        assert state.dtype == np.float32 and state.shape == (14,)
+        assert robot.environment_state_size == 14
+        env = CubeToBowlEnv(object_state=True)
+        expected, _ = env.reset(seed=5)
+        np.testing.assert_allclose(state, expected["environment_state"], atol=1e-4)
+        plain = lockstep(scene="pick_cube")
+        plain.connect()
+        assert "environment_state" not in plain.get_observation()
+        assert plain.environment_state_size == 0
+        plain.disconnect()
+    finally:
+        robot.disconnect()
+
+
+def test_randomize_is_passed_to_the_follower_and_needs_a_scene():
+    config = parse_robot("type=so101_sim", "scene=pick_cube", "randomize=light")
+    assert config.follower_config().randomize == "light"
+    assert SO101SimConfig().randomize == "none"
+    with pytest.raises(draccus.utils.ParsingError) as info:
+        parse_robot("type=so101_sim", "randomize=light")
+    assert "needs a scene" in str(info.value.__cause__)
+
+
 # ---------------------------------------------------------------------------- actions
 def test_actions_accept_0d_tensors_and_numpy_scalars_and_ignore_other_keys():
     with lockstep() as robot:

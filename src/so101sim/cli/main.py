@@ -7,6 +7,8 @@ so101sim hold           hold the starting pose (the lab's first script)
 so101sim view           open the model in MuJoCo's interactive viewer
 so101sim model-path     print the folder of the shipped model
 so101sim teleop         mirror a LeRobot SO-101 leader arm on the sim in real time
+so101sim dataset TASK   a LeRobotDataset of a task's scripted expert (LeRobot plugin)
+so101sim eval POLICY    a policy's success rate on a task, in parallel (LeRobot plugin)
 
 Nothing here decides anything: the checks, viewer or headless, and running are in the library
 (:mod:`so101sim.cli.runplan` runs ``run`` and ``hold``). Each command imports what it needs when
@@ -141,6 +143,9 @@ def build_parser() -> argparse.ArgumentParser:
     from .fidelity import add_parsers as add_fidelity_commands  # so101sim compare, fit
 
     add_fidelity_commands(sub)
+    from .learning import add_learning_commands  # so101sim dataset, eval (LeRobot plugins)
+
+    add_learning_commands(sub)
     return parser
 
 

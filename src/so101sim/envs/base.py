@@ -6,7 +6,8 @@ keys as noted):
 
 * ``agent_pos`` (6,) float32: the measured joint positions, degrees and gripper 0-100
   (``observation.state``);
-* ``agent_vel`` (6,) float32: their velocities, per second;
+* ``agent_vel`` (6,) float32: their velocities, per second, if ``joint_velocities`` (the
+  default; LeRobot has no key for it, so the LeRobot env plugin turns it off);
 * ``environment_state`` (7 per object) float32, if ``object_state``: each object's position
   (metres) and orientation quaternion (w, x, y, z) (``observation.environment_state``);
 * ``pixels``: ``{camera: (height, width, 3) uint8}``, if ``cameras`` are named
@@ -37,12 +38,16 @@ from ..recording.settings import check_quality
 from ..robot.config import GRIPPER_TORQUE_FRACTION
 from ..scenes import (
     PRESET_CAMERAS,
+    Randomization,
+    SceneRandomizer,
     VisualJitter,
     VisualRandomizer,
+    add_distractors,
     build_scene,
     camera,
     place_objects,
     preset_scene,
+    randomization,
     sample_placements,
 )
 from ..sim.simulation import Simulation
@@ -91,6 +96,7 @@ class So101TaskEnv(SceneState, gym.Env):
         cameras: tuple[str, ...] | list[str] = (),
         image_size: tuple[int, int] = (224, 224),
         object_state: bool = True,
+        joint_velocities: bool = True,
         control_hz: float = 25.0,
         episode_seconds: float | None = None,
         max_delta: float = 10.0,
@@ -103,6 +109,7 @@ class So101TaskEnv(SceneState, gym.Env):
         gripper_torque_fraction: float = GRIPPER_TORQUE_FRACTION,
         terminate_on_success: bool = True,
         initial_pose: Pose | None = None,
+        randomize: str | Randomization | dict[str, Any] | None = None,
     ) -> None:
         if render_mode is not None:
             check_choice(render_mode, "render mode", RENDER_MODES)
@@ -116,6 +123,7 @@ class So101TaskEnv(SceneState, gym.Env):
         )
         self.quality = check_quality(quality, QUALITY_CHOICES)
         self.object_state = bool(object_state)
+        self.joint_velocities = bool(joint_velocities)
         self.terminate_on_success = bool(terminate_on_success)
         hz = check_range(control_hz, "control_hz", low=1.0, high=500.0, unit=" Hz")
         seconds = check_range(
@@ -130,7 +138,11 @@ class So101TaskEnv(SceneState, gym.Env):
             gripper_torque_fraction, "gripper_torque_fraction", low=0.0, high=1.0, low_open=True
         )
         self.scene = preset_scene(self.scene_name, cameras=self._camera_specs())
-        self.model = build_scene(self.scene)
+        self.randomize = randomization(randomize)
+        n = self.randomize.distractors
+        self.model = build_scene(
+            self.scene, extra=(lambda spec: add_distractors(spec, n)) if n else None
+        )
         limit_gripper(self.model, fraction)
         self.sim = Simulation(self.model, initial_pose=initial_pose or STARTING_POSE)
         self._period_steps = 1.0 / (hz * self.sim.timestep)  # physics steps per env step
@@ -149,6 +161,9 @@ class So101TaskEnv(SceneState, gym.Env):
         self.jitter = (visual_jitter or VisualJitter()).validated()
         self._renderers: dict[str, FrameRenderer] = {}
         self._randomizer: VisualRandomizer | None = None
+        self._scene_randomizer: SceneRandomizer | None = None
+        self.randomization: dict[str, Any] = {}
+        """What the last reset's randomisation drew (empty without ``randomize``)."""
         self._viewer_stack: contextlib.ExitStack | None = None
         self._viewer: Any = None
         self._steps = 0
@@ -179,8 +194,10 @@ class So101TaskEnv(SceneState, gym.Env):
                 (upper + tol).astype(np.float32),
                 dtype=np.float32,
             ),
-            "agent_vel": spaces.Box(-MAX_JOINT_SPEED, MAX_JOINT_SPEED, (n,), dtype=np.float32),
         }
+        if self.joint_velocities:
+            fastest = MAX_JOINT_SPEED
+            items["agent_vel"] = spaces.Box(-fastest, fastest, (n,), dtype=np.float32)
         if self.object_state:
             k = len(self.scene.objects)
             bound = np.tile(np.r_[np.full(3, MAX_DISTANCE_M), np.ones(4)], k).astype(np.float32)
@@ -202,6 +219,23 @@ class So101TaskEnv(SceneState, gym.Env):
             r = self._renderers[key] = FrameRenderer(self.model, settings)
             self._randomizer = None  # a new render model: jitter it too from now on
         return r
+
+    def _randomize(self) -> None:
+        """The episode's domain randomisation, drawn after the start poses (which stay those
+        drawn without it) from the same generator."""
+        if not self.randomize.active:
+            return
+        for name in self.cameras:
+            self._renderer(name, self.image_size)
+        if self.render_mode == "rgb_array":
+            self._renderer(self.render_camera, self.render_size)
+        renders = [r.render_model for r in self._renderers.values()]
+        if self._scene_randomizer is None:
+            objects = [o.name for o in self.scene.objects]
+            self._scene_randomizer = SceneRandomizer(self.model, objects, self.randomize, renders)
+        for m in renders:
+            self._scene_randomizer.add_render_model(m)
+        self.randomization = self._scene_randomizer.apply(self.np_random, self.sim.data)
 
     def _jitter(self) -> None:
         if not self.jitter.active:
@@ -234,6 +268,7 @@ class So101TaskEnv(SceneState, gym.Env):
         if placements is not None:
             poses.update({k: tuple(map(float, v)) for k, v in dict(placements).items()})
         place_objects(self.model, self.sim.data, poses)
+        self._randomize()
         self.actions.reset(self.sim.commanded_array())
         self._jitter()
         self._steps = 0
@@ -341,9 +376,10 @@ class So101TaskEnv(SceneState, gym.Env):
         sim = self.sim
         space = self.observation_space["agent_pos"]
         pos = np.clip(sim.pose_array(), space.low, space.high).astype(np.float32)
-        vel = np.clip(sim.data.qvel[sim.index.dof] / self._scale, -MAX_JOINT_SPEED, MAX_JOINT_SPEED)
-        vel = vel.astype(np.float32)
-        obs: dict[str, Any] = {"agent_pos": pos, "agent_vel": vel}
+        obs: dict[str, Any] = {"agent_pos": pos}
+        if self.joint_velocities:
+            vel = sim.data.qvel[sim.index.dof] / self._scale
+            obs["agent_vel"] = np.clip(vel, -MAX_JOINT_SPEED, MAX_JOINT_SPEED).astype(np.float32)
         if self.object_state:
             poses = [self.object_pose(o.name) for o in self.scene.objects]
             state = np.concatenate(poses).astype(np.float32)

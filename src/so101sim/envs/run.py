@@ -183,3 +183,89 @@ def evaluate_expert(
     finally:
         env.close()
     return ExpertScore(task=env_id(task), episodes=episodes)
+
+
+@dataclass(frozen=True)
+class ExpertFrames:
+    """One episode of a scripted expert as a dataset holds it: frame ``t`` is the observation
+    before action ``t`` and that action (what ``lerobot-record`` stores per frame)."""
+
+    seed: int
+    success: bool
+    success_frame: int | None
+    """The first frame whose observation shows the task done (None: it failed)."""
+    states: np.ndarray
+    """(T, 6) float32: measured joint positions (degrees, gripper 0..100)."""
+    actions: np.ndarray
+    """(T, 6) float32: the joint targets sent (absolute, the same units)."""
+    environment_state: np.ndarray
+    """(T, 7 * objects) float32: each object's position and quaternion."""
+    images: dict[str, np.ndarray] = field(default_factory=dict)
+    """camera -> (T, h, w, 3) uint8."""
+    randomization: dict[str, Any] = field(default_factory=dict)
+    """What the domain randomisation drew for the episode (empty without it)."""
+
+
+def expert_frames(
+    task: str,
+    seed: int,
+    *,
+    fps: int = 30,
+    cameras: tuple[str, ...] | list[str] = (),
+    image_size: tuple[int, int] = (96, 96),
+    randomize: Any = None,
+    after_success_s: float = 1.0,
+) -> ExpertFrames:
+    """One episode of ``task``'s scripted expert from ``reset(seed=seed)``, at ``fps``
+    environment steps per simulated second (absolute joint targets, the draft meshes for
+    images), ending ``after_success_s`` after the task first succeeded or at its time limit.
+    A plain function of plain arguments, so that worker processes can run it (``so101sim
+    dataset``) without importing anything of LeRobot.
+
+    Raises:
+        SettingError: an unknown task or a bad setting.
+    """
+    env = make(
+        task,
+        control="joint",
+        control_hz=float(fps),
+        cameras=list(cameras),
+        image_size=tuple(image_size),
+        object_state=True,
+        joint_velocities=False,
+        quality="draft",
+        terminate_on_success=False,
+        randomize=randomize,
+    )
+    try:
+        expert = expert_for(env)
+        obs, info = env.reset(seed=seed)
+        expert.reset()
+        after = round(check_range(after_success_s, "after_success_s", low=0.0, high=60.0) * fps)
+        states, actions, env_states = [], [], []
+        images: dict[str, list[np.ndarray]] = {c: [] for c in cameras}
+        first: int | None = None
+        done = False
+        while not done:
+            action = np.asarray(expert.act(obs), dtype=np.float32)
+            states.append(np.asarray(obs["agent_pos"], dtype=np.float32))
+            actions.append(action)
+            env_states.append(np.asarray(obs["environment_state"], dtype=np.float32))
+            for cam in cameras:
+                images[cam].append(obs["pixels"][cam])
+            obs, _, terminated, truncated, info = env.step(action)
+            if info["is_success"] and first is None:
+                first = len(actions)
+            done = terminated or truncated or (first is not None and len(actions) - first >= after)
+        return ExpertFrames(
+            seed=seed,
+            success=first is not None,
+            success_frame=first,
+            states=np.stack(states),
+            actions=np.stack(actions),
+            environment_state=np.stack(env_states),
+            images={c: np.stack(v) for c, v in images.items()},
+            randomization=dict(env.unwrapped.randomization),
+        )
+    finally:
+        env.close()

@@ -6,11 +6,9 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
-from ..errors import So101SimError
+from ..errors import MissingDependencyError
 
-
-class MissingDependencyError(So101SimError, ImportError):
-    """An optional package the asked-for feature needs is not installed."""
+__all__ = ["MissingDependencyError", "need"]
 
 
 def need(module: str, package: str) -> ModuleType:

@@ -38,7 +38,14 @@ import numpy as np
 from ..errors import CameraError, DeviceNotConnectedError, SettingError
 from ..model.load import load_model
 from ..recording.settings import QUALITY_CHOICES, VideoSettings
-from ..scenes import PRESET_CAMERAS, CameraSpec, build_model, camera, preset_scene
+from ..scenes import (
+    PRESET_CAMERAS,
+    CameraSpec,
+    add_distractors,
+    build_model,
+    camera,
+    preset_scene,
+)
 from ..sim.simulation import Simulation
 
 CAMERA_KEYS: tuple[str, ...] = (
@@ -136,16 +143,21 @@ def _checked(cam: RobotCameraSpec) -> RobotCameraSpec:
 
 
 def scene_model(
-    cameras: Mapping[str, Any] | None, model: str | Path | None, scene: str | None = None
+    cameras: Mapping[str, Any] | None,
+    model: str | Path | None,
+    scene: str | None = None,
+    distractors: int = 0,
 ) -> mujoco.MjModel:
     """A follower's own physics model: ``model`` (the shipped scene by default) with its
     cameras and the table and objects of the ``scene`` preset (see
     :data:`so101sim.scenes.SCENE_PRESETS`) added, compiled anew; without cameras or a scene,
     a private copy of the loaded model (the follower changes the gripper's force range on
-    it)."""
+    it). ``distractors``: that many distractor boxes for the domain randomisation."""
     cams = parse_cameras(cameras)
     if scene is not None:
-        return build_model([c.spec for c in cams.values()], model, scene=preset_scene(scene))
+        extra = (lambda spec: add_distractors(spec, distractors)) if distractors else None
+        specs = [c.spec for c in cams.values()]
+        return build_model(specs, model, scene=preset_scene(scene), extra=extra)
     if cams:
         return build_model([c.spec for c in cams.values()], model)
     return copy.copy(load_model(model))
@@ -278,6 +290,11 @@ class CameraRig:
 
         for name, cam in self.specs.items():
             self._renderers[name] = FrameRenderer(self._sim.model, cam.settings())
+
+    @property
+    def render_models(self) -> list[mujoco.MjModel]:
+        """The models the cameras draw with (empty before :meth:`open`)."""
+        return [r.render_model for r in self._renderers.values()]
 
     def _close_renderers(self) -> None:
         for r in self._renderers.values():

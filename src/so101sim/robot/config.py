@@ -87,6 +87,10 @@ def _check_seconds(value: object, what: str) -> float:
     )
 
 
+RANDOMIZE_CHOICES = ("none", "light", "full")
+"""The domain randomisation presets (:data:`so101sim.scenes.RANDOMIZE_PRESETS`)."""
+
+
 @dataclass(kw_only=True)
 class SO101SimFollowerConfig:
     """Configuration of :class:`~so101sim.robot.SO101SimFollower`.
@@ -139,6 +143,10 @@ class SO101SimFollowerConfig:
     """Lockstep mode: simulated seconds each ``get_observation`` advances."""
     gripper_torque_fraction: float = GRIPPER_TORQUE_FRACTION
     """Share of the gripper actuator's force range the gripper may use (0 < f <= 1)."""
+    randomize: str = "none"
+    """Domain randomisation of the ``scene`` at each reset of a take
+    (:mod:`so101sim.scenes.randomize`): ``"none"``, ``"light"`` or ``"full"``, drawn from the
+    take's seed after the objects' start poses, as the environments draw it."""
 
     def __new__(cls, *args: Any, **kwargs: Any) -> SO101SimFollowerConfig:
         # Before the dataclass's __init__, so a field it lacks (a real arm's ``port``) is a
@@ -166,6 +174,12 @@ class SO101SimFollowerConfig:
         check_choice(self.mode, "mode", MODES, error=RobotConfigError)
         if self.scene is not None:
             check_choice(self.scene, "scene", SCENE_PRESETS, error=RobotConfigError)
+        check_choice(self.randomize, "randomize", RANDOMIZE_CHOICES, error=RobotConfigError)
+        if self.randomize != "none" and self.scene is None:
+            raise RobotConfigError(
+                f"randomize={self.randomize!r} needs a scene; expected scene='pick_cube' or "
+                f"'cube_to_bowl' (LeRobot: --robot.scene=...)"
+            )
         check_choice(
             self.viewer_quality, "viewer_quality", VIEWER_QUALITIES, error=RobotConfigError
         )

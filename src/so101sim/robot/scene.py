@@ -33,8 +33,11 @@ from ..errors import DeviceNotConnectedError, RobotConfigError
 from ..scenes import (
     SCENE_PRESETS,
     Placement,
+    SceneRandomizer,
     TableScene,
+    object_qpos,
     place_objects,
+    randomization,
     sample_placements,
     scene_of,
 )
@@ -43,6 +46,9 @@ from ..validation import check_count
 log = logging.getLogger(__name__)
 
 MAX_SEED = 2**63 - 1
+MAX_DISTANCE_M = 10.0
+"""Object positions in :meth:`RobotScene.environment_state` are clipped to this (metres), as
+the environments clip theirs."""
 
 _lock = threading.Lock()
 _connected: weakref.WeakSet[Any] = weakref.WeakSet()
@@ -166,6 +172,9 @@ class RobotScene:
         self.resets = 0
         """How many resets were made."""
         self._pending: int | None = None
+        self.randomization: dict[str, Any] = {}
+        """What the last reset's domain randomisation drew (the follower's ``randomize``)."""
+        self._randomizer: SceneRandomizer | None = None
         self.observation_hook: Callable[[], None] | None = None
         """Called before each of the follower's observations, before a pending reset is made
         (the expert teleoperator sees there that LeRobot began a new episode)."""
@@ -187,6 +196,23 @@ class RobotScene:
         return str(self.follower.config.scene)
 
     @property
+    def state_size(self) -> int:
+        """The length of :meth:`environment_state`: 7 per object."""
+        return 7 * len(self.scene.objects)
+
+    def environment_state(self) -> np.ndarray:
+        """Each object's position (metres) and quaternion (w, x, y, z), in the scene's order
+        (cube, then bowl), float32: what the environments give as ``environment_state``
+        (LeRobot: ``observation.environment_state``)."""
+        follower = self.follower
+        with follower.lock:
+            sim = follower.simulation
+            parts = [sim.data.qpos[object_qpos(sim.model, o.name)] for o in self.scene.objects]
+            state = np.concatenate(parts).astype(np.float32)
+        bound = np.tile(np.r_[np.full(3, MAX_DISTANCE_M), np.ones(4)], len(self.scene.objects))
+        return np.clip(state, -bound, bound).astype(np.float32)
+
+    @property
     def pending(self) -> int | None:
         """The seed of the reset asked for and not yet made, or None."""
         return self._pending
@@ -198,13 +224,26 @@ class RobotScene:
         Raises:
             SettingError: ``seed`` is not a whole number from 0 to 2**63 - 1.
         """
-        poses = draw_placements(self.scene, seed)
-        sim = self.follower.simulation
-        with self.follower.lock:
+        seed = check_count(seed, "seed", maximum=MAX_SEED)
+        rng = np.random.default_rng(seed)
+        poses = sample_placements(self.scene.objects, rng, self.scene.keep_out)
+        follower = self.follower
+        sim = follower.simulation
+        options = randomization(getattr(follower.config, "randomize", "none"))
+        with follower.lock:
             now = sim.data.time
             sim.reset()  # arm at its initial pose, commanded to stay there; objects nominal
             sim.data.time = now  # simulated time never goes back
             place_objects(sim.model, sim.data, poses)
+            if options.active:  # drawn after the poses from the same generator, as envs do
+                rig = getattr(follower, "_rig", None)
+                renders = rig.render_models if rig is not None else []
+                if self._randomizer is None:
+                    objects = [o.name for o in self.scene.objects]
+                    self._randomizer = SceneRandomizer(sim.model, objects, options, renders)
+                for m in renders:
+                    self._randomizer.add_render_model(m)
+                self.randomization = self._randomizer.apply(rng, sim.data)
             self._pending = None
         self.placements = poses
         self.resets += 1

@@ -49,6 +49,15 @@ from .presets import (
     preset_scene,
     scene_from_dict,
 )
+from .randomize import (
+    PRESETS as RANDOMIZE_PRESETS,
+)
+from .randomize import (
+    Randomization,
+    SceneRandomizer,
+    add_distractors,
+    randomization,
+)
 
 __all__ = [
     "BOWL",
@@ -58,6 +67,7 @@ __all__ = [
     "FOLDED_ARM",
     "MAX_CAMERA_PIXELS",
     "PRESET_CAMERAS",
+    "RANDOMIZE_PRESETS",
     "SCENE_PRESETS",
     "SEPARATION_GAP_M",
     "SHAPES",
@@ -65,11 +75,14 @@ __all__ = [
     "CameraSpec",
     "ContactSettings",
     "Placement",
+    "Randomization",
     "SceneObject",
+    "SceneRandomizer",
     "Table",
     "TableScene",
     "VisualJitter",
     "VisualRandomizer",
+    "add_distractors",
     "build_model",
     "build_scene",
     "camera",
@@ -82,6 +95,7 @@ __all__ = [
     "place_objects",
     "placed",
     "preset_scene",
+    "randomization",
     "sample_placements",
     "scene_builder",
     "scene_from_dict",

@@ -137,10 +137,11 @@ def build_model(
     model: str | Path | None = None,
     *,
     scene: TableScene | None = None,
+    extra: Callable[[mujoco.MjSpec], None] | None = None,
 ) -> mujoco.MjModel:
     """Compile the shipped scene (or ``model``) with ``cameras`` added, and with ``scene``'s
-    table, objects and cameras. The draft render preset finds the same scene with simplified
-    meshes (:func:`scene_builder`).
+    table, objects and cameras, and whatever ``extra`` adds to its MjSpec. The draft render
+    preset finds the same scene with simplified meshes (:func:`scene_builder`).
 
     Raises:
         ModelError, CameraError, SettingError: the model cannot be read or compiled; a camera
@@ -150,7 +151,10 @@ def build_model(
     checked = scene.validated() if scene is not None else None
 
     def make() -> mujoco.MjSpec:
-        return scene_spec(cams, model, checked)
+        spec = scene_spec(cams, model, checked)
+        if extra is not None:
+            extra(spec)  # e.g. randomize.add_distractors: in every rebuild (draft renders)
+        return spec
 
     spec = make()
     try:
@@ -165,9 +169,14 @@ def build_model(
     return compiled
 
 
-def build_scene(scene: TableScene, model: str | Path | None = None) -> mujoco.MjModel:
+def build_scene(
+    scene: TableScene,
+    model: str | Path | None = None,
+    *,
+    extra: Callable[[mujoco.MjSpec], None] | None = None,
+) -> mujoco.MjModel:
     """Compile ``scene`` (see :func:`build_model`)."""
-    return build_model((), model, scene=scene)
+    return build_model((), model, scene=scene, extra=extra)
 
 
 def scene_builder(model: mujoco.MjModel) -> Callable[[], mujoco.MjSpec] | None:

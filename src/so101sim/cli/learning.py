@@ -1,0 +1,205 @@
+"""``so101sim dataset`` and ``so101sim eval``: LeRobot datasets from the scripted experts, and
+policies evaluated at scale. Their work is in the LeRobot plugins (the only code that imports
+LeRobot and torch): ``lerobot_robot_so101sim.dataset`` and ``lerobot_env_so101sim.evaluate``,
+imported by name only when the command runs; without the plugin installed the command says
+what to install (one line, exit status 2). Like the rest of :mod:`so101sim.cli`, this module
+only parses and prints.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import sys
+from typing import Any
+
+from ..errors import MissingDependencyError
+
+SubParsers = Any  # argparse's private _SubParsersAction
+
+PLUGINS = {
+    "dataset": ("lerobot_robot_so101sim", "dataset", "./plugins/lerobot_robot_so101sim"),
+    "eval": ("lerobot_env_so101sim", "evaluate", "./plugins/lerobot_env_so101sim"),
+}
+"""Each command's plugin: its package, the module with the work, where to install it from."""
+
+
+def plugin_module(command: str) -> Any:
+    """The plugin module that does ``command``'s work.
+
+    Raises:
+        MissingDependencyError: its plugin is not installed (the message says what to install).
+    """
+    package, module, source = PLUGINS[command]
+    if importlib.util.find_spec(package) is None:
+        raise MissingDependencyError(
+            f"so101sim {command} needs the LeRobot plugin {package}: install it with "
+            f"`pip install {source}` from so101sim's repository (Python 3.12+, LeRobot 0.6)"
+        )
+    return importlib.import_module(f"{package}.{module}")
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        h, w = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected HEIGHTxWIDTH, e.g. 96x96") from None
+    return h, w
+
+
+def _cameras(text: str) -> tuple[str, ...]:
+    return tuple(c for c in text.split(",") if c)
+
+
+def add_learning_commands(sub: SubParsers) -> None:
+    """Add ``dataset`` and ``eval`` to the parser's subcommands."""
+    p = sub.add_parser(
+        "dataset",
+        help="write a LeRobotDataset of a task's scripted expert (needs the LeRobot plugin)",
+        description=(
+            "Simulates N episodes of TASK's scripted expert (pick_cube, cube_to_bowl), each from "
+            "its own seed, faster than real time on worker processes, and writes them with "
+            "LeRobot's dataset writer: the features lerobot-record writes on "
+            "--robot.type=so101_sim. Failed takes are left out and counted (replaced by the "
+            "next seeds). Needs lerobot_robot_so101sim installed."
+        ),
+    )
+    p.add_argument("task", help="pick_cube or cube_to_bowl")
+    p.add_argument("--episodes", type=int, required=True, help="episodes to write")
+    p.add_argument("-o", "--output", required=True, help="the dataset's folder (must not exist)")
+    p.add_argument("--repo-id", default="local/so101sim", help="the dataset's repo_id")
+    p.add_argument("--seed", type=int, default=0, help="episode k is drawn from seed + k")
+    p.add_argument("--fps", type=int, default=30, help="frames per simulated second (30)")
+    p.add_argument(
+        "--cameras", type=_cameras, default=(), help="comma-separated: front,wrist (none)"
+    )
+    p.add_argument("--image-size", type=_size, default=(96, 96), help="HxW (default 96x96)")
+    p.add_argument(
+        "--environment-state",
+        action="store_true",
+        help="also write observation.environment_state (the objects' poses)",
+    )
+    p.add_argument("--randomize", default="none", help="none (default), light or full")
+    p.add_argument(
+        "--after-success", type=float, default=1.0, help="seconds kept after success (1)"
+    )
+    p.add_argument("--workers", type=int, help="worker processes (default: every core)")
+    p.add_argument("--ray", action="store_true", help="run the episodes as Ray tasks")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_dataset)
+
+    p = sub.add_parser(
+        "eval",
+        help="a policy's success rate on a task, episodes in parallel (needs the LeRobot plugin)",
+        description=(
+            "Runs N episodes of the policy saved at POLICY_PATH (lerobot-train's "
+            ".../pretrained_model) on TASK in worker processes, the environment matching the "
+            "policy's inputs, episode k from seed --seed + k; prints the success rate with its "
+            "95 %% (Wilson) interval and the time to success, writes eval.json and a video of "
+            "each failure under --output. Needs lerobot_env_so101sim installed."
+        ),
+    )
+    p.add_argument("policy", metavar="POLICY_PATH", help="the policy's folder (config.json)")
+    p.add_argument("--task", default="pick_cube", help="pick_cube (default) or cube_to_bowl")
+    p.add_argument("--episodes", type=int, default=10, help="episodes (default 10)")
+    p.add_argument("--seed", type=int, default=1000, help="first episode's seed (1000)")
+    p.add_argument("--workers", type=int, help="worker processes (default: every core)")
+    p.add_argument("--randomize", default="none", help="none (default), light or full")
+    p.add_argument("--episode-length", type=int, help="steps per episode (default: the task's)")
+    p.add_argument("--fps", type=int, default=30, help="policy steps per second (30)")
+    p.add_argument("-o", "--output", help="folder for eval.json and the failures' videos")
+    p.add_argument("--max-videos", type=int, default=10, help="failure videos at most (10)")
+    p.add_argument("--device", default="cpu", help="torch device (cpu)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_eval)
+
+
+def _workers(value: int | None) -> int:
+    import os
+
+    return value if value is not None else max(1, len(os.sched_getaffinity(0)))
+
+
+def cmd_dataset(args: argparse.Namespace) -> int:
+    module = plugin_module("dataset")
+    from tqdm import tqdm
+
+    settings = module.DatasetSettings(
+        task=args.task,
+        episodes=args.episodes,
+        root=args.output,
+        repo_id=args.repo_id,
+        seed=args.seed,
+        fps=args.fps,
+        cameras=args.cameras,
+        image_size=args.image_size,
+        environment_state=args.environment_state,
+        randomize=args.randomize,
+        after_success_s=args.after_success,
+        workers=_workers(args.workers),
+        use_ray=args.ray,
+    )
+    bar = tqdm(total=args.episodes, unit="episode", disable=args.no_progress, file=sys.stderr)
+
+    def progress(episode: Any) -> None:
+        if episode.success:
+            bar.update(1)
+        else:
+            bar.set_postfix_str(f"failed seed {episode.seed}")
+
+    try:
+        report = module.generate_dataset(settings, progress)
+    finally:
+        bar.close()
+    print(
+        f"wrote {report.episodes} episodes ({report.frames} frames) to {report.root} in "
+        f"{report.wall_seconds:.1f} s with {report.workers} worker(s): "
+        f"{report.speed:.1f}x real time"
+    )
+    if report.failed_seeds:
+        seeds = ", ".join(str(s) for s in report.failed_seeds)
+        print(f"left out {len(report.failed_seeds)} failed take(s): seeds {seeds}")
+    return 0
+
+
+def cmd_eval(args: argparse.Namespace) -> int:
+    module = plugin_module("eval")
+    from tqdm import tqdm
+
+    settings = module.EvalSettings(
+        policy=args.policy,
+        task=args.task,
+        episodes=args.episodes,
+        seed=args.seed,
+        workers=_workers(args.workers),
+        randomize=args.randomize,
+        episode_length=args.episode_length,
+        fps=args.fps,
+        output=args.output,
+        max_videos=args.max_videos,
+        device=args.device,
+    )
+    bar = tqdm(total=args.episodes, unit="episode", disable=args.no_progress, file=sys.stderr)
+    try:
+        report = module.evaluate_policy(settings, lambda _: bar.update(1))
+    finally:
+        bar.close()
+    low, high = report.interval
+    print(
+        f"{report.task} (randomize {report.randomize}): success {report.successes}/"
+        f"{report.episodes} = {100 * report.success_rate:.0f} % "
+        f"(95 % interval {100 * low:.0f}-{100 * high:.0f} %) in {report.wall_seconds:.1f} s "
+        f"with {report.workers} worker(s)"
+    )
+    times = report.success_times
+    if times:
+        print(f"time to success: mean {sum(times) / len(times):.2f} s, "
+              f"median {sorted(times)[len(times) // 2]:.2f} s (simulated)")  # fmt: skip
+    videos = [o.video for o in report.outcomes if o.video]
+    if videos:
+        print(f"videos of {len(videos)} failure(s) in {videos[0].rsplit('/', 1)[0]}")
+    return 0
+
+
+__all__ = ["PLUGINS", "add_learning_commands", "plugin_module"]

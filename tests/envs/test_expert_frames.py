@@ -1,0 +1,27 @@
+"""``expert_frames``: one scripted-expert episode as a dataset holds it (``so101sim dataset``'s
+workers run it): frame t is the observation before action t; the same seed gives the same
+episode; success ends it ``after_success_s`` later."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from so101sim.envs import expert_frames
+from so101sim.units import STARTING_POSE
+
+
+def test_expert_frames_are_one_deterministic_successful_take():
+    a = expert_frames("pick_cube", 3, fps=30, after_success_s=0.5)
+    b = expert_frames("pick_cube", 3, fps=30, after_success_s=0.5)
+    assert a.success and a.success_frame is not None
+    assert len(a.actions) == a.success_frame + 15  # 0.5 s at 30 fps after success
+    assert a.states.shape == a.actions.shape == (len(a.actions), 6)
+    assert a.environment_state.shape == (len(a.actions), 7) and a.states.dtype == np.float32
+    np.testing.assert_allclose(a.states[0], list(STARTING_POSE.values()), atol=0.5)
+    np.testing.assert_array_equal(a.states, b.states)
+    np.testing.assert_array_equal(a.actions, b.actions)
+    # the cube rose by the end: the state of the objects is the real one
+    assert a.environment_state[-1, 2] - a.environment_state[0, 2] > 0.03
+    assert a.randomization == {}
+    c = expert_frames("pick_cube", 4, randomize="light", after_success_s=0.0)
+    assert c.randomization and c.success
