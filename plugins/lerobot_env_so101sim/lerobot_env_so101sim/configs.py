@@ -27,6 +27,7 @@ from lerobot.envs.configs import EnvConfig
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
 from so101sim.errors import SettingError
+from so101sim.model.arm import load_profile
 from so101sim.recording import QUALITY_CHOICES
 from so101sim.scenes import PRESET_CAMERAS, SCENE_PRESETS
 from so101sim.units import JOINT_NAMES
@@ -62,6 +63,10 @@ class SO101SimEnvConfig(EnvConfig):
     reward: str = "dense"
     """``dense`` (0..1) or ``sparse`` (1 on success)."""
     render_mode: str = "rgb_array"
+    arm: str | None = None
+    """The arm profile (``--env.arm=``): ``sts3215`` (None: the default), ``official``,
+    ``sts3215-12v`` or a TOML file; use the one the policy's dataset was recorded with
+    (``--robot.arm``)."""
     visualization_height: int = 480
     visualization_width: int = 640
     """Size of the frames of lerobot-eval's videos (the ``front`` camera)."""
@@ -82,6 +87,8 @@ class SO101SimEnvConfig(EnvConfig):
         check_choice(self.quality, "quality", QUALITY_CHOICES)
         check_choice(self.reward, "reward", ("dense", "sparse"))
         check_choice(self.render_mode, "render_mode", ("rgb_array",))
+        if self.arm is not None:
+            load_profile(self.arm)  # an unknown profile fails now, naming the known ones
         self.features, self.features_map = self._features()
 
     def _features(self) -> tuple[dict[str, PolicyFeature], dict[str, str]]:
@@ -124,6 +131,8 @@ class SO101SimEnvConfig(EnvConfig):
             "render_size": (self.visualization_height, self.visualization_width),
             "terminate_on_success": True,
         }
+        if self.arm is not None:
+            kwargs["arm"] = self.arm
         if self.episode_length is not None:
             kwargs["episode_seconds"] = check_range(
                 self.episode_length / self.fps, "episode_length / fps", low=0.0, high=3600.0

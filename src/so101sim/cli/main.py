@@ -31,7 +31,7 @@ from typing import Any
 from .. import __version__
 from ..errors import So101SimError
 from .commands import cmd_check, cmd_model_path, cmd_pose, cmd_teleop, cmd_view
-from .output import SIGNALS, _say, _signal_name
+from .output import SIGNALS, _say, _signal_name, add_arm_option
 from .run import cmd_hold, cmd_run
 from .tools import (
     add_camera_options,
@@ -109,29 +109,31 @@ def build_parser() -> argparse.ArgumentParser:
         help="refuse 'limited' moves shorter than the joint limits allow (default: stretch them)",
     )
     recording = _recording_parent()
+    arm = argparse.ArgumentParser(add_help=False)
+    add_arm_option(arm)
 
     summary = "run a motion file (default: the lab motion)"
-    p = _command(sub, "run", cmd_run, summary, model, headless, speed, strict, recording)
+    p = _command(sub, "run", cmd_run, summary, model, arm, headless, speed, strict, recording)
     p.add_argument(
         "motion",
         nargs="?",
         help="a TOML motion file (default: the shipped lab motion, rest -> zeros -> rest)",
     )
     summary = "hold the starting (rest) pose, as the lab's first script"
-    p = _command(sub, "hold", cmd_hold, summary, model, headless, speed, recording)
+    p = _command(sub, "hold", cmd_hold, summary, model, arm, headless, speed, recording)
     p.add_argument("--duration", type=float, default=30.0, help="seconds to hold (default 30)")
     _command(sub, "view", cmd_view, "open the model in MuJoCo's interactive viewer", model)
     _command(sub, "model-path", cmd_model_path, "print the folder holding the shipped model")
     summary = "pose the arm in the viewer; prints each pose as a Python dict and as TOML"
     _command(sub, "pose", cmd_pose, summary, model)
     summary = "simulate a motion file headless and judge it before hardware: PASS/FAIL"
-    _add_check_options(_command(sub, "check", cmd_check, summary, model, strict))
+    _add_check_options(_command(sub, "check", cmd_check, summary, model, arm, strict))
     summary = "mirror a LeRobot SO-101 leader arm on the sim in real time (Ctrl-C stops)"
     _add_teleop_options(_command(sub, "teleop", cmd_teleop, summary, model, headless))
-    add_commands(sub, recording=recording, model=model)
+    add_commands(sub, recording=recording, model=model, arm=arm)
     from .demo import add_demo_command  # so101sim demo
 
-    add_demo_command(sub)
+    add_demo_command(sub, arm=arm)
     from .fidelity import add_parsers as add_fidelity_commands  # so101sim compare, fit
 
     add_fidelity_commands(sub)

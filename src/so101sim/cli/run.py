@@ -49,6 +49,7 @@ def _run(
         segments,
         start=start,
         model=args.model,
+        arm=args.arm,
         speed=args.speed,
         headless=args.headless,
         strict=strict,

@@ -113,6 +113,7 @@ def prepare_run(
     headless: bool = False,
     strict: bool = False,
     outputs: Outputs | None = None,
+    arm: object = None,
 ) -> PreparedRun:
     """Check a run of ``segments`` from ``start`` and make its recorder, opening nothing.
 
@@ -127,7 +128,7 @@ def prepare_run(
     def loaded() -> mujoco.MjModel:
         if isinstance(model, mujoco.MjModel):
             return model
-        return load_model(model, physics_only=not draws)
+        return load_model(model, physics_only=not draws, arm=arm)  # arm: a profile, None: default
 
     if strict:
         check_strict(loaded(), segments, start)

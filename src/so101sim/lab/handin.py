@@ -18,6 +18,7 @@ in the caption and the video's metadata.
 from __future__ import annotations
 
 import contextlib
+import copy
 import os
 import runpy
 import sys
@@ -282,6 +283,36 @@ def _script_environment(path: Path, args: Sequence[str]) -> Iterator[None]:
         sys.argv, sys.path[:] = saved_argv, saved_path
 
 
+@contextlib.contextmanager
+def _arm_models(arm: object) -> Iterator[None]:
+    """With an arm profile (``so101sim record --arm``): the script's models get it, both those
+    it loads through so101sim (``load_model``, ``Simulation``: the profile is the default while
+    it runs) and those it compiles with ``mujoco.MjModel.from_xml_path`` (as the lab handout
+    does: a private copy of ``load_model(path, arm=...)``). None: the script's own models."""
+    if arm is None:
+        yield
+        return
+    from ..model.arm import default_profile, profile_key
+    from ..model.load import load_model
+
+    original = mujoco.MjModel.from_xml_path
+
+    def from_xml_path(filename: str, assets: Any = None) -> mujoco.MjModel:
+        if assets:
+            return original(filename, assets)
+        return copy.copy(load_model(filename, arm=profile))
+
+    with default_profile(arm) as profile:  # type: ignore[arg-type]
+        if not profile_key(profile):  # official: the files' own actuators, as they load
+            yield
+            return
+        mujoco.MjModel.from_xml_path = staticmethod(from_xml_path)  # type: ignore[method-assign]
+        try:
+            yield
+        finally:
+            mujoco.MjModel.from_xml_path = original  # type: ignore[method-assign]
+
+
 def run_script(
     script: str | os.PathLike[str], args: Sequence[str], video: PathArg, **options: Any
 ) -> ScriptRun:
@@ -294,17 +325,26 @@ def run_script(
     exceptions pass through (an exception propagates after the files are finished); its
     exit status is returned.
 
+    ``arm`` (an option): an arm profile for the models the script loads (see
+    :func:`_arm_models`); None leaves them as the script makes them.
+
     Raises:
         NothingRecordedError: the script ended without opening a viewer.
     """
     path = Path(script)
     if not path.is_file():
         raise So101SimError(f"script {str(path)!r} does not exist; expected a Python file")
+    arm = options.pop("arm", None)
     clock = SimClock()
     session = _Session(clock, video, options)
     status, message = 0, ""
     try:
-        with _script_environment(path, args), _patched_viewer(session), simulated_time(clock):
+        with (
+            _script_environment(path, args),
+            _arm_models(arm),
+            _patched_viewer(session),
+            simulated_time(clock),
+        ):
             try:
                 runpy.run_path(str(path), run_name="__main__")
             except SystemExit as exc:

@@ -105,8 +105,13 @@ def preflight(
     thresholds: Thresholds | None = None,
     lines: Sequence[int] = (),
     strict: bool = False,
+    arm: object = None,
 ) -> PreflightReport:
     """Simulate ``steps`` headless from ``start`` (at rest) and judge them.
+
+    ``model``: a compiled model, or a file loaded with the arm profile ``arm`` (None: the
+    default, see :func:`so101sim.model.load_model`); the efforts are fractions of that
+    profile's torque limits (the actuators' ``forcerange``).
 
     ``lines`` (the motion file's line of each step) only label the report. With ``strict``,
     a ``limited`` move shorter than the joint limits allow raises TrajectoryLimitError first.
@@ -115,7 +120,7 @@ def preflight(
         So101SimError: an invalid step (bad target, duration, profile), or strict refusal.
     """
     th = thresholds if thresholds is not None else Thresholds()
-    m = model if isinstance(model, mujoco.MjModel) else load_model(model)
+    m = model if isinstance(model, mujoco.MjModel) else load_model(model, arm=arm)
     measured = measure(
         steps, start=start, model=m, saturation_level=th.max_effort, lines=lines, strict=strict
     )
@@ -135,9 +140,11 @@ def check_motion_file(
     model: mujoco.MjModel | str | Path | None = None,
     thresholds: Thresholds | None = None,
     strict: bool = False,
+    arm: object = None,
 ) -> PreflightReport:
-    """Load a motion file and :func:`preflight` it from its start pose."""
-    m = model if isinstance(model, mujoco.MjModel) else load_model(model)
+    """Load a motion file and :func:`preflight` it from its start pose (on ``model`` with the
+    arm profile ``arm``, see :func:`preflight`)."""
+    m = model if isinstance(model, mujoco.MjModel) else load_model(model, arm=arm)
     motion = load_motion(path, units=arm_units(m), model=m)
     return preflight(
         motion.steps,

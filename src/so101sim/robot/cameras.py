@@ -136,19 +136,24 @@ def _checked(cam: RobotCameraSpec) -> RobotCameraSpec:
 
 
 def scene_model(
-    cameras: Mapping[str, Any] | None, model: str | Path | None, scene: str | None = None
+    cameras: Mapping[str, Any] | None,
+    model: str | Path | None,
+    scene: str | None = None,
+    *,
+    arm: object = None,
 ) -> mujoco.MjModel:
-    """A follower's own physics model: ``model`` (the shipped scene by default) with its
-    cameras and the table and objects of the ``scene`` preset (see
-    :data:`so101sim.scenes.SCENE_PRESETS`) added, compiled anew; without cameras or a scene,
-    a private copy of the loaded model (the follower changes the gripper's force range on
-    it)."""
+    """A follower's own physics model: ``model`` (the shipped scene by default) with the arm
+    profile ``arm`` (None: the default), its cameras and the table and objects of the
+    ``scene`` preset (see :data:`so101sim.scenes.SCENE_PRESETS`) added, compiled anew;
+    without cameras or a scene, a private copy of the loaded model (the follower changes the
+    gripper's force range on it)."""
     cams = parse_cameras(cameras)
     if scene is not None:
-        return build_model([c.spec for c in cams.values()], model, scene=preset_scene(scene))
+        specs = [c.spec for c in cams.values()]
+        return build_model(specs, model, scene=preset_scene(scene), arm=arm)
     if cams:
-        return build_model([c.spec for c in cams.values()], model)
-    return copy.copy(load_model(model))
+        return build_model([c.spec for c in cams.values()], model, arm=arm)
+    return copy.copy(load_model(model, arm=arm))
 
 
 @dataclass(frozen=True)
