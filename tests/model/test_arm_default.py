@@ -159,7 +159,7 @@ def test_check_variants_takes_arm(capsys):
     default = json.loads(capsys.readouterr().out)
     worst = {}
     for name, rep in (("official", official), ("sts3215", default)):
-        worst[name] = max(o["peak_tracking_error"] for o in rep["outcomes"])
+        worst[name] = max(o["tracking_error"] for o in rep["per_variant"])
     assert worst["official"] < 1.0 < 5.0 < worst["sts3215"]
 
 

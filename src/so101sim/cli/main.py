@@ -145,7 +145,7 @@ _THRESHOLD_OPTIONS = (  # check's thresholds: (flag, default, help)
     ("--max-saturation", 0.03, "seconds the effort may stay above --max-effort"),
     (
         "--max-tracking-error",
-        5.0,
+        15.0,
         "largest allowed |commanded - measured|, degrees (gripper: 0-100 units)",
     ),
     ("--limit-margin", 1.0, "closest a body joint may come to a limit, degrees"),

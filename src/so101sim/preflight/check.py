@@ -19,12 +19,21 @@ limits, no effort stays above ``max_effort`` for longer than ``max_saturation`` 
 about one period of LeRobot's 30 Hz control loop), every tracking error stays at or below
 ``max_tracking_error``, and nothing touches.
 
+The efforts are fractions of the arm profile's torque limits (the actuators' ``forcerange``:
+the default ``sts3215`` at 7.4 V, ±3.92 N·m; ``official``, ±3.35 N·m; see
+:mod:`so101sim.model.arm`), and the arm is the profile's: the fitted STS3215 sags under the
+arm's weight and lags a moving goal (its firmware slews the goal at most 4.9 rad/s, P = 16
+gives 11 N·m/rad, a 27 ms delay), so its tracking errors are those of the real arm (up to
+9.2° in the lab motion) and the default ``max_tracking_error`` (15°) is set for it. Its
+efforts stay well inside the limit in the lab's moves (the slew-limited goal does not kick
+the motor at a move's start).
+
 Why a time and not the bare peak: the ``linear`` profile (the lab's) starts and stops each move
-with a step in velocity, and the shipped model's stiff actuators (kp ≈ 998 N·m/rad) meet it by
-saturating for a few milliseconds (shoulder and elbow: 6–14 ms in the lab motion) while the
-tracking error stays under 0.3°. The servo follows; the report notes the spike. A move that is
-too fast, or pushes into the floor, saturates for far longer and fails. ``minimum_jerk`` and
-``limited`` keep the lab's moves under about 40 %.
+with a step in velocity, and the vendored model's stiff actuators (``--arm official``, kp ≈
+998 N·m/rad) meet it by saturating for a few milliseconds (shoulder and elbow: 6–14 ms in the
+lab motion) while the tracking error stays under 0.3°. The servo follows; the report notes
+the spike. A move that is too fast, or pushes into the floor, saturates for far longer and
+fails.
 
 The gripper is exempt from the limit margin (it is meant to close against its stop; 0 *is* its
 lower limit) but not from the other checks.
