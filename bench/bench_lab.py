@@ -10,7 +10,14 @@ Prints, measured side by side in one run (interleaved, best of several repeats):
   Python), timed by simulated time so they take the same 3000 steps;
 * a naive per-step NumPy loop (``d.ctrl[:] = target; mj_step`` in Python);
 * so101sim's headless lab motion (``run_motion``), which computes each move's targets at once
-  and replays them in C.
+  and replays them in C;
+* ``Simulation.move_to`` / ``Simulation.hold``, the same three segments;
+* the handout's helpers as so101sim ships them (``so101sim.lab``: ``move_to_pose`` /
+  ``hold_position`` on a bare ``(m, d)``, with their warnings computed after each segment from
+  the states the stepping kernel recorded): the code students actually run.
+
+The last line prints the lab helpers' cost over raw ``mj_step`` on the same motion (goal: at
+most 1.1x).
 
 Run: python bench/bench_lab.py [--repeats 7]
 """
@@ -24,9 +31,10 @@ import mujoco
 import numpy as np
 
 from so101sim import LAB_MOTION, Simulation, run_motion
+from so101sim.lab import hold_position, move_to_pose
 from so101sim.model import default_units
 from so101sim.motion import Move, plan_move
-from so101sim.units import JOINT_NAMES, STARTING_POSE
+from so101sim.units import JOINT_NAMES, STARTING_POSE, ZERO_POSE
 
 PI_HANDOUT = 3.14159
 
@@ -131,6 +139,25 @@ def so101sim_lab(_targets):
     return time.perf_counter() - t
 
 
+def simulation_segments(_targets):
+    sim = fresh()
+    t = time.perf_counter()
+    sim.move_to(ZERO_POSE, 2.0)
+    sim.hold(2.0)
+    sim.move_to(STARTING_POSE, 2.0)
+    return time.perf_counter() - t
+
+
+def lab_helpers(_targets):
+    sim = fresh()
+    m, d = sim.model, sim.data
+    t = time.perf_counter()
+    move_to_pose(m, d, None, ZERO_POSE, 2.0)
+    hold_position(m, d, None, 2.0)
+    move_to_pose(m, d, None, STARTING_POSE, 2.0)
+    return time.perf_counter() - t
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=7)
@@ -144,16 +171,24 @@ def main() -> None:
         "handout's dict helpers": lambda: handout(targets),
         "naive per-step NumPy loop": lambda: naive_loop(targets),
         "so101sim lab motion (headless)": lambda: so101sim_lab(targets),
+        "Simulation.move_to / hold": lambda: simulation_segments(targets),
+        "so101sim.lab move_to_pose/hold_position": lambda: lab_helpers(targets),
     }
+    lab_helpers(targets)  # first use: the contact screen's scratch model is made once per model
     best = dict.fromkeys(variants, float("inf"))
     for _ in range(args.repeats):  # interleaved, so machine noise hits all alike
         for name, fn in variants.items():
             best[name] = min(best[name], fn())
     base = best["raw mj_step(nstep), same motion"]
     print(f"lab motion: {n} physics steps (6 s at dt 0.002), best of {args.repeats}")
-    print(f"{'variant':36s} {'µs/step':>9s} {'× raw':>7s}")
+    print(f"{'variant':42s} {'µs/step':>9s} {'× raw':>7s}")
     for name, t in best.items():
-        print(f"{name:36s} {t / n * 1e6:9.2f} {t / base:7.2f}")
+        print(f"{name:42s} {t / n * 1e6:9.2f} {t / base:7.2f}")
+    helpers = best["so101sim.lab move_to_pose/hold_position"]
+    print(
+        f"lab helpers / raw mj_step, same motion: {helpers / base:.2f}x (goal <= 1.1x); "
+        f"/ Simulation.move_to: {helpers / best['Simulation.move_to / hold']:.2f}x"
+    )
 
 
 if __name__ == "__main__":

@@ -5,7 +5,8 @@ variants, side by side in one run, and its scaling from 1 to 2 threads.
 
 *Raw rollout*: the same worker threads, each writing the same variants into its model copy
 (``apply_variant``, ``mj_setConst``) and rolling out the same controls in the same blocks with
-``mujoco.rollout``, with nothing measured. *Robust preflight*: ``check_variants`` (the model
+``mujoco.rollout`` itself (not through so101sim's stepping kernel), with nothing measured.
+*Robust preflight*: ``check_variants`` (the model
 and motion prepared, every variant measured and judged, the report). The goal (issue 14) is a
 ratio of at most 1.15.
 """
@@ -16,12 +17,18 @@ import sys
 import threading
 import time
 
+import mujoco
+import numpy as np
+from mujoco import rollout as _rollout
+
 from so101sim.model import scene_path
 from so101sim.motion.file import lab_motion_path, load_motion
 from so101sim.preflight.judge import Thresholds
 from so101sim.preflight.robust import check_variants
-from so101sim.preflight.rollout import Worker, plan_motion, sensor_model
+from so101sim.preflight.rollout import BLOCK, Worker, plan_motion, sensor_model
 from so101sim.preflight.variants import sample_variants
+
+_CTRL = mujoco.mjtState.mjSTATE_CTRL.value
 
 
 def raw_rollout(base, plan, variants, threads: int) -> None:
@@ -30,20 +37,39 @@ def raw_rollout(base, plan, variants, threads: int) -> None:
 
     def work() -> None:
         w = Worker(base, plan, Thresholds())
+        runner = _rollout.Rollout(nthread=0)
         while True:
             with lock:
                 v = next(todo, None)
             if v is None:
                 return
-            offset, s0, warm = w._start(v)
-            for _ in w.blocks(offset, s0, warm):
-                pass
+            offset, s0 = w._start(v)
+            _raw_blocks(w, runner, offset, s0)
 
     pool = [threading.Thread(target=work) for _ in range(threads)]
     for t in pool:
         t.start()
     for t in pool:
         t.join()
+
+
+def _raw_blocks(w: Worker, runner, offset, s0) -> None:
+    """The worker's rollout, raw: ``mujoco.rollout`` on the same blocks and controls, with no
+    kernel around it (no divergence check, no exit gate, nothing measured)."""
+    m, d, idx = w.m, w.d, w.idx
+    targets, n = w.plan.targets, len(w.plan.targets)
+    warm = d.qacc_warmstart.copy()
+    for a in range(0, n, BLOCK):
+        k = min(BLOCK, n - a)
+        ctrl = np.zeros((1, k, m.nu))
+        ctrl[0][:, idx.actuator] = targets[a : a + k] - offset
+        state = np.empty((1, k, len(s0)))
+        sens = np.empty((1, k, m.nsensordata))
+        runner.rollout(
+            [m], [d], s0[None], ctrl, control_spec=_CTRL, skip_checks=True, nstep=k,
+            initial_warmstart=warm[None], state=state, sensordata=sens,
+        )  # fmt: skip
+        s0, warm = state[0, -1].copy(), d.qacc_warmstart.copy()
 
 
 def timed(fn) -> float:

@@ -21,13 +21,13 @@ PACKAGE = Path(so101sim.__file__).parent
 # (layer, packages and top-level modules), lowest first: a module may import modules of its own
 # layer or below. A package's name stands for it and all its modules (docs/architecture.md).
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
-    ("base", ("errors", "validation", "gl", "exitgate", "_compat")),
+    ("base", ("errors", "validation", "gl", "exitgate", "_compat", "_lazy")),
     ("units", ("units",)),
     ("model", ("model",)),
     ("kinematics", ("kinematics",)),
     ("sim", ("sim",)),
     ("motion", ("motion",)),
-    ("outputs", ("recording", "viewer", "preflight", "scenes", "fidelity")),
+    ("outputs", ("recording", "viewer", "preflight", "scenes", "fidelity", "studio")),
     ("apps", ("lab", "robot", "envs")),
     ("cli", ("cli", "__main__")),
 ]

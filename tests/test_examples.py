@@ -91,7 +91,7 @@ def test_check_then_run_example_runs_from_any_folder(tmp_path):
     assert "PASS" in out
     ends = re.findall(r"^\s*(.+?): ended at ([\d.]+) s", out, flags=re.M)
     # wave.toml: its waves 1 s and its gripper steps 1.2 s, what a P = 16 servo follows
-    assert ends[0][0] == "raise" and ends[-1] == ("fold", "12.400")
+    assert ends[0][0] == "raise" and ends[-1] == ("fold", "14.400")
 
 
 @pytest.mark.slow

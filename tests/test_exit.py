@@ -198,3 +198,45 @@ def test_disconnect_waits_for_an_action_in_flight() -> None:
     t.join()
     assert robot.simulation.data.time == t_after
     assert all(e == 1 for e in errors)
+
+
+def test_a_mirrored_viewer_stops_drawing_once_the_gate_closes() -> None:
+    """The viewer's own sync thread (a daemon) makes MuJoCo calls too: refused at exit."""
+    import contextlib
+
+    import mujoco
+
+    from so101sim import exitgate
+    from so101sim.model import load_model
+    from so101sim.viewer import MirroredViewer
+
+    class Handle:
+        synced = 0
+
+        def lock(self):
+            return contextlib.nullcontext()
+
+        def sync(self):
+            Handle.synced += 1
+
+        def close(self):
+            pass
+
+    m = load_model()
+    source = mujoco.MjData(m)
+    viewer = MirroredViewer(Handle(), m, mujoco.MjData(m), source)
+    viewer.sync()
+    for _ in range(200):
+        if viewer.frames:
+            break
+        threading.Event().wait(0.01)
+    assert viewer.frames == 1
+    exitgate.GATE.close(timeout=1)
+    try:
+        viewer.sync()
+        viewer._thread.join(5)
+        assert not viewer._thread.is_alive()  # it ended instead of calling mj_forward
+        assert viewer.frames == 1
+    finally:
+        exitgate.GATE.reopen()
+        viewer.close()

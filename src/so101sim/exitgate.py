@@ -5,7 +5,7 @@ MuJoCo's bindings release the GIL during a call, and when the call returns, CPyt
 a daemon thread that wants the GIL back by unwinding its stack through the bindings' C++
 frames, which cannot take it. Python joins the threads that are not daemons before it
 finalises, but not daemon threads: a user's daemon thread that calls a lockstep robot's
-``send_action`` in a loop, or steps a :class:`~so101sim.simulation.Simulation`, is killed
+``send_action`` in a loop, or steps a :class:`~so101sim.sim.Simulation`, is killed
 wherever it is.
 
 So every long or repeated MuJoCo call of so101sim runs inside :func:`mujoco_call`: the
@@ -16,7 +16,7 @@ down) the gate closes: it waits for the calls in flight to end (at most :data:`E
 each is short: a block of steps, one action) and refuses every later one with
 :class:`~so101sim.errors.ClosedError`, so a daemon thread still calling gets an exception in
 Python instead of a crash. The threads so101sim starts itself are stopped and joined by their
-own exit hooks (:mod:`so101sim.robot_threads`, the cameras, the viewer), which run before
+own exit hooks (:mod:`so101sim.robot.threads`, the cameras, the viewer), which run before
 this one (the last registered runs first).
 
 MuJoCo calls a program makes itself (``mujoco.mj_step`` in its own daemon thread) are outside

@@ -1,4 +1,4 @@
-"""Checking numbers that come from a user: durations, rates, counts, sizes and choices.
+"""Checking what comes from a user: numbers (durations, rates, counts, sizes), choices and paths.
 
 One place for "a finite number in this range", so that every check says the same kind of
 thing ("what was wrong, what was expected") and every number that sizes an allocation (a
@@ -7,16 +7,27 @@ duration that becomes a step count, a frame size, a rate) is bounded before it i
 Each function returns the value converted (``float`` or ``int``) or raises the error class it
 is given, a :class:`~so101sim.errors.SettingError` by default. It imports nothing of so101sim
 but the errors, so any layer may use it.
+
+Paths, one check for each direction, used by every command and function that reads or writes
+a file the user names: :func:`check_input_file` (a file to read: the model, a script) and
+:func:`check_output_path` (a file to write: videos, plots, logs, the workspace picture). Both
+refuse an empty path and names or paths longer than the file system allows (``NAME_MAX`` and
+``PATH_MAX`` from ``os.pathconf``) before anything touches the file system, so no ``OSError``
+("File name too long") escapes as a traceback.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import numbers
+import os
 import reprlib
-from collections.abc import Iterable
+import stat
+from collections.abc import Iterable, Sequence
+from pathlib import Path
 
-from .errors import DurationError, RateError, SettingError
+from .errors import DurationError, OutputPathError, RateError, SettingError
 
 MAX_DURATION_S = 24 * 3600.0
 """The longest duration accepted, in simulated seconds (one day: 43.2 million physics steps at
@@ -173,8 +184,12 @@ def check_count(
     if not ok:
         raise error(f"{what} = {shown(value)} is not a whole number; expected {expected}")
     n = int(value)  # type: ignore[arg-type]
-    if n < minimum or (maximum is not None and n > maximum) or (even and n % 2):
-        raise error(f"{what} = {shown(n)}{unit} is invalid; expected {expected}")
+    text = shown(n)
+    number = text + unit if text == str(n) else text  # not "an integer of 20 digits pixels"
+    if n < minimum or (maximum is not None and n > maximum):
+        raise error(f"{what} = {number} is out of range; expected {expected}")
+    if even and n % 2:
+        raise error(f"{what} = {number} is odd; expected {expected}")
     return n
 
 
@@ -186,3 +201,215 @@ def check_choice(
     if not isinstance(value, str) or value not in valid:
         raise error(f"unknown {what} {shown(value)}; valid {what}s are {', '.join(valid)}")
     return value
+
+
+# ---------------------------------------------------------------------------- paths
+DEFAULT_NAME_MAX = 255
+"""Bytes in a file name where the file system does not say (Linux, macOS and Windows: 255)."""
+DEFAULT_PATH_MAX = 4096
+"""Bytes in a path where the system does not say (Linux: 4096)."""
+_KINDS = (
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISFIFO, "a named pipe"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+def check_path_text(path: object, what: str, *, error: type[Exception] = SettingError) -> str:
+    """``path`` (a str or ``os.PathLike``) as text, if it names something: not empty, not
+    blank, no NUL character; else raise ``error`` naming ``what``."""
+    if isinstance(path, bytes | os.PathLike):
+        path = os.fsdecode(path)  # type: ignore[arg-type]
+    if not isinstance(path, str):
+        raise error(f"the {what} path {shown(path)} is not a path; expected a file name (text)")
+    if not path.strip():
+        raise error(f"the {what} path is empty ({path!r}); expected a file name")
+    if "\0" in path:
+        raise error(f"the {what} path {shown(path)} holds a NUL character; expected a file name")
+    return path
+
+
+def path_limit(folder: str | os.PathLike[str], name: str, default: int) -> int:
+    """``os.pathconf(folder, name)`` (``"PC_NAME_MAX"``, ``"PC_PATH_MAX"``), or ``default``
+    where the system does not say."""
+    try:
+        value = os.pathconf(folder, name)
+    except (OSError, ValueError, AttributeError):  # not known here (or not POSIX)
+        return default
+    return value if value > 0 else default
+
+
+def _nearest_folder(p: Path) -> Path:
+    """The nearest existing folder at or above ``p`` (the current one for a relative path
+    whose folders do not exist), found without ever failing on a long name."""
+    q = Path(os.path.abspath(p))
+    for candidate in (q, *q.parents):
+        try:
+            if candidate.is_dir():
+                return candidate
+        except (OSError, ValueError):  # too long, a NUL: go up
+            continue
+    return Path("/")
+
+
+def check_path_length(path: Path, what: str, *, error: type[Exception] = SettingError) -> None:
+    """Raise ``error`` if a name in ``path`` is longer than the file system's ``NAME_MAX`` or
+    the whole path (made absolute) reaches ``PATH_MAX``, before any call that would fail with
+    "File name too long"."""
+    folder = _nearest_folder(path)
+    name_max = path_limit(folder, "PC_NAME_MAX", DEFAULT_NAME_MAX)
+    for part in path.parts:
+        size = len(os.fsencode(part))
+        if size > name_max:
+            named = what if what.endswith(("file", "folder")) else f"{what} file"
+            where = f"the {named} name"
+            if part != path.name:
+                where = f"a folder name in the {what} path"
+            raise error(
+                f"{where} {part[:40]!r}… is {size} bytes long; expected at most "
+                f"{name_max} bytes (the file system's limit)"
+            )
+    path_max = path_limit(folder, "PC_PATH_MAX", DEFAULT_PATH_MAX)
+    size = len(os.fsencode(os.path.abspath(path)))
+    if size >= path_max:
+        raise error(
+            f"the {what} path {str(path)[:40]!r}… is {size} bytes long; expected fewer than "
+            f"{path_max} bytes (the system's limit)"
+        )
+
+
+def checked_path(path: object, what: str, *, error: type[Exception] = SettingError) -> Path:
+    """``path`` as a Path (``~`` expanded) after :func:`check_path_text` and
+    :func:`check_path_length`."""
+    p = Path(check_path_text(path, what, error=error)).expanduser()
+    check_path_length(p, what, error=error)
+    return p
+
+
+def check_input_file(
+    path: object,
+    what: str,
+    *,
+    expected: str = "an existing regular file",
+    error: type[Exception] = SettingError,
+) -> Path:
+    """``path`` as a Path if it names a regular file that can be read; else raise ``error``
+    saying what it is instead (empty, too long, missing, a folder, a device, a pipe,
+    unreadable) and ``expected``."""
+    p = checked_path(path, what, error=error)
+    try:
+        mode = os.stat(p).st_mode
+    except FileNotFoundError:
+        raise error(f"the {what} {str(p)!r} does not exist; expected {expected}") from None
+    except OSError as exc:
+        raise error(
+            f"the {what} {str(p)!r} cannot be read ({exc.strerror}); expected {expected}"
+        ) from None
+    if stat.S_ISDIR(mode):
+        raise error(f"the {what} {str(p)!r} is a folder, not a regular file; expected {expected}")
+    for test, kind in _KINDS:
+        if test(mode):
+            raise error(f"the {what} {str(p)!r} is {kind}, not a regular file; expected {expected}")
+    if not stat.S_ISREG(mode):
+        raise error(f"the {what} {str(p)!r} is not a regular file; expected {expected}")
+    if not os.access(p, os.R_OK):
+        raise error(
+            f"the {what} {str(p)!r} cannot be read (permission denied); expected {expected}"
+        )
+    return p
+
+
+def temp_name(path: Path, name_max: int = DEFAULT_NAME_MAX) -> str:
+    """The hidden temporary name of ``path``: ``.<stem>.<pid>.partial<suffix>``, the stem cut
+    so that the name fits in ``name_max`` bytes (a legal 250-byte name stays writable)."""
+    stem, tail = path.stem, f".{os.getpid()}.partial{path.suffix}"
+    room = name_max - 1 - len(os.fsencode(tail))
+    while stem and len(os.fsencode(stem)) > room:
+        stem = stem[:-1]
+    return f".{stem}{tail}"
+
+
+def check_output_path(
+    path: object,
+    *,
+    force: bool = False,
+    what: str = "output",
+    suffixes: Sequence[str] = (),
+    error: type[Exception] = OutputPathError,
+) -> Path:
+    """Check that ``path`` can be written, before anything runs; return it as a Path.
+
+    Raises (``error``, :class:`~so101sim.errors.OutputPathError` by default):
+        the path is empty; the suffix is not one of ``suffixes``; a name or the path is
+        longer than the file system allows; the folder does not exist or no file can be
+        created in it (tried by creating and removing a temporary file there, so ``/proc``,
+        read-only mounts and root are caught too); the path is a folder, a device, a pipe or
+        a socket (``force`` replaces regular files only); or the file exists and ``force`` is
+        False.
+    """
+    p = Path(check_path_text(path, what, error=error)).expanduser()
+    if suffixes and p.suffix.lower() not in suffixes:
+        raise error(
+            f"{what} file {str(p)!r} has the wrong extension; expected one of {', '.join(suffixes)}"
+        )
+    check_path_length(p, what, error=error)
+    folder = _check_folder(p, what, error)
+    _check_target(p, what, force, error)
+    _try_creating(p, folder, what, error)
+    return p
+
+
+def _check_folder(p: Path, what: str, error: type[Exception]) -> Path:
+    folder = p.parent if str(p.parent) else Path(".")
+    if not folder.is_dir():
+        raise error(
+            f"cannot write the {what} {str(p)!r}: the folder {str(folder)!r} does not exist; "
+            "expected an existing folder (create it first)"
+        )
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise error(
+            f"cannot write the {what} {str(p)!r}: the folder {str(folder)!r} is not writable; "
+            "expected a folder you can write to"
+        )
+    return folder
+
+
+def _check_target(p: Path, what: str, force: bool, error: type[Exception]) -> None:
+    try:
+        mode = os.stat(p).st_mode
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise error(
+            f"cannot write the {what} {str(p)!r}: {exc.strerror}; expected a path you can write"
+        ) from None
+    if stat.S_ISDIR(mode):
+        raise error(f"the {what} path {str(p)!r} is a folder; expected a file name")
+    for test, kind in _KINDS:
+        if test(mode):
+            raise error(
+                f"the {what} path {str(p)!r} is {kind}, not a regular file; expected the name "
+                "of a regular file (so101sim never replaces devices, pipes or sockets)"
+            )
+    if not force:
+        raise error(
+            f"the {what} file {str(p)!r} already exists; expected a new file name, or force "
+            "overwriting (--force)"
+        )
+
+
+def _try_creating(p: Path, folder: Path, what: str, error: type[Exception]) -> None:
+    """Create and remove the temporary file: the folder's permission bits do not tell about
+    ``/proc``, ``/sys``, read-only mounts or root."""
+    tmp = folder / temp_name(p, path_limit(folder, "PC_NAME_MAX", DEFAULT_NAME_MAX))
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise error(
+            f"cannot write the {what} {str(p)!r}: creating a file in {str(folder)!r} failed "
+            f"({exc.strerror}); expected a folder where files can be created"
+        ) from None
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(tmp)

@@ -96,3 +96,44 @@ def test_record_checks_the_camera_options_before_the_script_runs(tmp_path, capsy
     out, err = capsys.readouterr()
     assert "the script ran" not in out and "elevation = -120.0 is invalid" in err
     assert not (tmp_path / "l.mp4").exists()
+
+
+def test_record_takes_record_as_o_and_refuses_two_videos_or_none(tmp_path, capsys):
+    out = tmp_path / "lab.mp4"
+    argv = ["record", str(SCRIPT), "--record", str(out), "--width", "160", "--height", "120",
+            "--", str(scene_path())]  # fmt: skip
+    assert cli.main(argv) == 0
+    assert f"wrote the video to {out}" in capsys.readouterr().out and out.is_file()
+    two = [
+        "record",
+        str(SCRIPT),
+        "-o",
+        str(tmp_path / "a.mp4"),
+        "--record",
+        str(tmp_path / "b.mp4"),
+    ]
+    assert cli.main(two) == 2
+    err = capsys.readouterr().err.strip()
+    assert "name two videos" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "a.mp4").exists() and not (tmp_path / "b.mp4").exists()
+    assert cli.main(["record", str(SCRIPT)]) == 2
+    assert "expected -o VIDEO.mp4" in capsys.readouterr().err
+
+
+def test_record_puts_the_title_on_the_plot_too(tmp_path, capsys, monkeypatch):
+    from so101sim.recording import recorder
+
+    titles = []
+    real = recorder.plot_run
+
+    def plot_run(*args, **kwargs):
+        titles.append(kwargs.get("title"))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(recorder, "plot_run", plot_run)
+    argv = ["record", str(SCRIPT), "-o", str(tmp_path / "lab.mp4"), "--plot",
+            str(tmp_path / "lab.png"), "--title", "Lab 2 - Ada Lovelace", "--width", "160",
+            "--height", "120", "--", str(scene_path())]  # fmt: skip
+    assert cli.main(argv) == 0
+    assert titles == ["Lab 2 - Ada Lovelace"]
+    assert (tmp_path / "lab.png").is_file()

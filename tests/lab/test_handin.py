@@ -104,3 +104,22 @@ def test_the_scripts_exit_status_and_exceptions_pass_through(tmp_path):
 
     assert time.time() > 1e9  # the real clock is back
     np.testing.assert_equal(1, 1)
+
+
+def test_waiting_for_ffmpeg_does_not_move_a_scripts_simulated_clock():
+    # ffmpeg behind on a busy machine: the recorder waits for it on the script's thread, while
+    # the script's time.sleep is the simulated clock's (which moves at once): before, each
+    # look at the queue moved the script's clock on, and a 6 s script's loops ended early.
+    import time
+
+    from so101sim.lab.simclock import SimClock, simulated_time
+    from so101sim.recording import encoder
+
+    clock = SimClock()
+    with simulated_time(clock):
+        t0 = time.monotonic()
+        for _ in range(10):
+            encoder._pause(0.001)
+        assert time.monotonic() == t0  # the script's clock did not move
+        time.sleep(0.5)  # the script's own sleep still does
+    assert clock.elapsed() == 0.5

@@ -73,3 +73,29 @@ def test_a_copied_motion_example_runs_from_its_new_folder(tmp_path, capsys):
     starter.copy_examples(tmp_path)
     assert cli.main(["check", str(tmp_path / "wave.toml")]) == 0
     assert capsys.readouterr().out.strip().endswith("PASS")
+
+
+def test_the_copied_examples_name_only_files_that_are_there(tmp_path):
+    """Each `python X.py` / `so101sim ... X.toml` line in an example's opening comment names a
+    file of the folder `so101sim examples FOLDER` made (the commands run from that folder)."""
+    import re
+
+    copied = starter.copy_examples(tmp_path / "mine")
+    named = 0
+    for path in copied:
+        head = "\n".join(path.read_text(encoding="utf-8").splitlines()[:14])
+        for name in re.findall(r"(?:python|so101sim \w+) (\S+\.(?:py|toml))", head):
+            assert (tmp_path / "mine" / name).is_file(), f"{path.name} names {name}"
+            named += 1
+        assert "examples/" not in head, f"{path.name}: {head}"
+    assert named >= 10
+
+
+def test_wave_waves_three_times_as_it_says():
+    from so101sim.motionfile import load_motion
+
+    text = starter.example_path("wave.toml").read_text(encoding="utf-8")
+    assert "three times" in text
+    motion = load_motion(starter.example_path("wave.toml"))
+    waves = [s for s in motion.steps if getattr(s, "phase", "").startswith("wave")]
+    assert len(waves) == 3

@@ -216,7 +216,7 @@ def test_the_example_motion_passes():
     path = Path(__file__).resolve().parents[2] / "examples" / "wave.toml"
     report = check_motion_file(path)
     assert report.passed, report.failures
-    assert len(report.steps) == 10
+    assert len(report.steps) == 12
 
 
 def test_check_reports_how_far_the_tip_strayed_from_a_straight_line():

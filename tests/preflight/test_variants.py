@@ -260,3 +260,34 @@ def test_a_variant_scales_the_stiffness_where_the_actuator_kind_keeps_it(arm):
             mujoco.mj_step(model, d)
         errors.append(abs(0.5 - d.qpos[arm_index(model).qpos[2]]))
     assert errors[1] < errors[0]
+
+
+def test_the_summary_says_per_check_how_many_failed_the_worst_and_what_to_change():
+    report = check_variants(LAB, count=30, seed=0)
+    text = format_variants(report)
+    counts = report.failing()
+    n = len(report.outcomes)
+    assert counts, "the lab motion fails some of 30 variants (effort, limits)"
+    for check, kind in (("limit margin", "Limit"), ("effort", "Effort")):
+        k = counts.get(kind, 0)
+        line = next(row for row in text.splitlines() if row.startswith(f"{check}:"))
+        if k:
+            assert f"FAIL in {k}/{n} variants" in line
+            worst = next(w for w in report.worst if w.check == check)
+            assert f"variant {worst.variant.index}" in line
+        else:
+            assert f"PASS in all {n} variants" in line
+    assert "what to change: a slower move" in text and "less payload" in text
+    assert 'profile = "minimum_jerk"' in text
+    assert "payload " in text and "zero offsets" in text  # the worst variant's parameters
+    assert "thresholds: limit margin 1° (body joints)" in text
+    # the worst tracking error of a variant that failed on other checks is said as such
+    tracking = next(row for row in text.splitlines() if row.startswith("tracking error:"))
+    worst = next(w for w in report.worst if w.check == "tracking error")
+    if not worst.outcome.passed and not any(
+        type(f).__name__ == "TrackingFinding" for f in worst.outcome.failures
+    ):
+        assert "passes it; fails" in tracking
+    checks = {c["check"]: c for c in report.to_dict()["checks"]}
+    assert checks["effort"]["failed"] == counts.get("Effort", 0)
+    assert "advice" in checks["effort"] or counts.get("Effort", 0) == 0

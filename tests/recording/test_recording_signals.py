@@ -45,12 +45,12 @@ class SignalAt(Observer):
 def _signal_during_run(monkeypatch, t: float, signum: int) -> None:
     """Make the CLI's run send ``signum`` just after simulated time ``t`` (its frame drawn)."""
     t += 0.001
-    original = runplan.run_motion
+    original = runplan.run_plan
 
-    def run_motion(m, d, segments, *, observers=(), **kw):
-        return original(m, d, segments, observers=[*observers, SignalAt(t, signum)], **kw)
+    def run_plan(sim, plan, *, observers=(), **kw):
+        return original(sim, plan, observers=[*observers, SignalAt(t, signum)], **kw)
 
-    monkeypatch.setattr(runplan, "run_motion", run_motion)
+    monkeypatch.setattr(runplan, "run_plan", run_plan)
 
 
 def _record(tmp_path) -> list[str]:

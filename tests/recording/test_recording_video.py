@@ -153,7 +153,7 @@ def test_frame_sizes_are_bounded_before_anything_is_allocated(tmp_path, capsys):
     argv = ["hold", "--duration", "0.1", "--record", str(tmp_path / "a.mp4")]
     assert cli.main([*argv, "--width", "9999999998"]) == 2
     err = capsys.readouterr().err
-    assert "width = 9999999998 pixels is invalid" in err and "4096" in err
+    assert "width = 9999999998 pixels is out of range" in err and "4096" in err
     assert list(tmp_path.iterdir()) == []
 
 

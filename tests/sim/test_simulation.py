@@ -445,3 +445,25 @@ def test_pose_values_are_the_pose_array_as_plain_floats():
     values = sim.pose_values()
     assert all(type(v) is float for v in values)
     assert values == sim.pose_array().tolist()
+
+
+def test_a_viewer_that_draws_slowly_is_synced_less_often_so_the_run_keeps_real_time(sim):
+    """MuJoCo's passive viewer waits while it draws (about 25 ms on a CPU renderer): synced 60
+    times a simulated second it would slow the run below real time. The observer measures a
+    sync's cost and syncs less often: drawing takes at most half the wall time. The sync here
+    takes at least 20 ms (a sleep; a busy machine only makes it longer), so at most one sync
+    every 40 ms of simulated time: at most 26 for a 1 s move."""
+    import time as _time
+
+    class SlowViewer(FakeViewer):
+        def sync(self):
+            _time.sleep(0.02)
+            super().sync()
+
+    viewer = SlowViewer()
+    clock = FakeClock()
+    obs = ViewerObserver(viewer, Pacer(clock=clock, sleep=clock.sleep), fps=60)
+    r = sim.move_to(ZERO_POSE, 1.0, observers=[obs])
+    assert r.completed and r.steps == 500
+    assert 5 <= viewer.syncs <= 26
+    assert obs.sync_cost >= 0.02

@@ -4,8 +4,14 @@ from __future__ import annotations
 
 import ast
 import contextlib
+import os
+import subprocess
+import sys
+import time
 import tomllib
+from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -136,17 +142,20 @@ def test_watch_poses_reports_where_a_drag_leaves_the_arm():
 def test_cli_pose_prints_each_pose_as_a_dict_and_as_toml(monkeypatch, capsys):
     made = {}
 
-    @contextlib.contextmanager
-    def fake_open_viewer(m, d, **kwargs):
-        made["kwargs"] = kwargs
-        yield FakeViewer(m, d, sliders={8: SLIDER_POSE}, syncs=25)
+    def fake_managed_viewer(m, d):
+        """MuJoCo's managed viewer, paused, a person dragging the joint sliders: qpos set,
+        left a moment (the watcher reads 15 times a second), then the window closed."""
+        made["model"] = m
+        time.sleep(0.5)
+        d.qpos[arm_index(m).qpos] = _rad(SLIDER_POSE)
+        time.sleep(0.8)
 
-    monkeypatch.setattr("so101sim.viewer.open_viewer", fake_open_viewer)
+    monkeypatch.setattr("so101sim.viewer.view", fake_managed_viewer)
     monkeypatch.setattr("so101sim.viewer.has_display", lambda: True)
-    monkeypatch.setattr(posefinder, "Pacer", _fast_pacer)
     assert cli.main(["pose"]) == 0
-    assert made["kwargs"].get("show_ui") is True  # the joint sliders are shown
+    assert made["model"].opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY)
     out = capsys.readouterr().out
+    assert "Press Space" in out  # how to make the joint sliders editable
     dicts = [
         ast.literal_eval(line[len("python: ") :])
         for line in out.splitlines()
@@ -189,3 +198,83 @@ def test_without_a_display_the_message_is_true_for_a_script_and_the_command(monk
     assert cli.main(["pose"]) == 2
     err = capsys.readouterr().err.strip()
     assert err == f"so101sim: error: {message}" and len(err.splitlines()) == 1
+
+
+@pytest.mark.viewer
+def test_dragging_a_joint_slider_in_the_viewer_prints_the_pose(xvfb, tmp_path):
+    """The real pose finder under Xvfb: a click on Pause pauses MuJoCo's viewer, one opens the
+    right panel's Joint section, and dragging shoulder_pan's slider (xdotool) moves the arm:
+    the command prints the new pose in degrees."""
+    import shutil
+    import threading
+
+    if shutil.which("xdotool") is None:
+        pytest.skip("xdotool is not installed (apt-get install -y xdotool)")
+    env = {**os.environ, "DISPLAY": xvfb}
+    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[1] / "src")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "so101sim", "pose"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=env,
+    )
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(proc.stdout), daemon=True)
+    reader.start()
+
+    def xdo(*args: str) -> str:
+        return subprocess.run(
+            ["xdotool", *args], env=env, capture_output=True, text=True, timeout=30
+        ).stdout
+
+    def pans() -> list[float]:
+        return [
+            ast.literal_eval(line[len("python: ") :])["shoulder_pan"]
+            for line in list(lines)
+            if line.startswith("python: ")
+        ]
+
+    try:
+        window = ""
+        for _ in range(120):  # the window (software OpenGL beside other jobs: slow to open)
+            window = xdo("search", "--pid", str(proc.pid), "--name", "MuJoCo")
+            window = window.split("\n")[0].strip()
+            if window and pans():
+                break
+            time.sleep(0.5)
+        assert window and pans() == [0.0], "".join(lines)
+        # pause: the left panel's Simulation section, its "Pause" choice (a click, not the Space
+        # key: a key goes to whichever window has the focus)
+        for _ in range(2):  # a radio choice: a second click keeps it (the first may be lost)
+            xdo("mousemove", "--window", window, "42", "427", "click", "1")
+            time.sleep(0.7)
+        # the right panel's Joint section (collapsed at first): its sliders appear below it
+        width = int(xdo("getwindowgeometry", "--shell", window).split("WIDTH=")[1].split()[0])
+        header_x = width - 150
+        xdo("mousemove", "--window", window, str(header_x), "21", "click", "1")
+        time.sleep(1.0)
+        x0, x1 = width - 80, width - 40  # shoulder_pan's slider, dragged to the right
+        for x, y in ((x0, 51), (x0 + 10, 51), (x1, 51)):
+            step = ["mousemove", "--window", window, str(x), str(y)]
+            xdo(*step, *(["mousedown", "1"] if x == x0 else []))
+            time.sleep(0.3)
+        xdo("mouseup", "1")
+        for _ in range(60):
+            if len(pans()) >= 2:
+                break
+            time.sleep(0.5)
+        if len(pans()) < 2:
+            with contextlib.suppress(Exception):
+                from PIL import ImageGrab
+
+                ImageGrab.grab(xdisplay=xvfb).save(tmp_path / "screen.png")  # to look at
+        assert len(pans()) >= 2 and pans()[-1] > 5.0, "".join(lines)
+        assert any(line.startswith("toml:   pose_2 = { shoulder_pan = ") for line in lines)
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()

@@ -12,6 +12,10 @@ from .tools import output_hint
 
 # ---------------------------------------------------------------------------- other commands
 def cmd_view(args: argparse.Namespace) -> int:
+    if args.web:  # the studio in a browser (cli/studio.py)
+        from .studio import view_web
+
+        return view_web(args)
     from ..sim.simulation import Simulation  # imported here: they import MuJoCo
     from ..viewer import view
 
@@ -28,31 +32,33 @@ def cmd_model_path(args: argparse.Namespace) -> int:
 
 
 def cmd_pose(args: argparse.Namespace) -> int:
+    if args.web:  # the pose finder in a browser (cli/studio.py)
+        from .studio import pose_web
+
+        return pose_web(args)
     from ..viewer.posefinder import (  # imported here: they import MuJoCo
+        INSTRUCTIONS,
+        check_display,
+        find_poses,
         format_python,
         format_toml,
-        open_pose_viewer,
         pose_scene,
-        watch_poses,
     )
 
+    check_display()  # without a display its error is all the user sees
     m, d = pose_scene(args.model)
-    # Open the viewer first: without a display its error is all the user sees.
-    with open_pose_viewer(m, d) as handle:
+    print(INSTRUCTIONS, flush=True)
+
+    def show(change: Any) -> None:
         print(
-            "Move the joint sliders (right panel, 'Joint'), or double-click a part and "
-            "Ctrl+right-drag it. Each pose the arm is left in is printed below; close the "
-            "window to finish.",
+            f"\n# pose {change.number} (t = {change.time:.1f} s)\n"
+            f"python: {format_python(change.pose)}\n"
+            f"toml:   {format_toml(f'pose_{change.number}', change.pose)}"
+            + (f"\ntip:    {change.tip.format()}" if change.tip is not None else ""),
             flush=True,
         )
-        for change in watch_poses(handle, m, d):
-            print(
-                f"\n# pose {change.number} (t = {change.time:.1f} s)\n"
-                f"python: {format_python(change.pose)}\n"
-                f"toml:   {format_toml(f'pose_{change.number}', change.pose)}"
-                + (f"\ntip:    {change.tip.format()}" if change.tip is not None else ""),
-                flush=True,
-            )
+
+    find_poses(m, d, show)  # MuJoCo's viewer until its window is closed
     return 0
 
 
@@ -65,7 +71,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     names = ("max_effort", "max_saturation", "max_tracking_error", "limit_margin")
     # a bad threshold is a SettingError: main() reports it
     thresholds = Thresholds(**{name: getattr(args, name) for name in names})
-    motion = args.motion if args.motion else lab_motion_path()
+    motion = args.motion if args.motion is not None else lab_motion_path()
     if args.variants is not None:
         return _check_variants(args, motion, thresholds)
     if any(getattr(args, o) is not None for o in ("seed", "threads", "plot", "ray")) or args.force:
@@ -88,7 +94,7 @@ def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> i
     settings = {"model": args.model, "thresholds": thresholds, "strict": args.strict}
     settings["arm"] = args.arm
     seed = 0 if args.seed is None else args.seed
-    if args.plot:
+    if args.plot is not None:
         pv.check_plot_path(args.plot, force=args.force)  # before anything runs
     if args.ray is None:
         report = pv.check_variants(
@@ -99,10 +105,10 @@ def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> i
 
         job = pv.make_job(motion, count=args.variants, seed=seed, **settings)
         report = pv.summarize(job, run_on_ray(job, args.ray))
-    if args.plot:
+    if args.plot is not None:
         pv.plot_variants(report, args.plot, force=True)
     print(json.dumps(report.to_dict(), indent=2) if args.json else pv.format_variants(report))
-    if args.plot and not args.json:
+    if args.plot is not None and not args.json:
         print(f"wrote {args.plot}")
     return 0 if report.passed == len(report.outcomes) else 1
 

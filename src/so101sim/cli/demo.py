@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from .studio import add_web_options
 from .tools import add_video_options
 
 SubParsers = Any  # argparse's private _SubParsersAction
@@ -45,6 +46,7 @@ def add_demo_command(sub: SubParsers, *, arm: argparse.ArgumentParser) -> None:
         help="draw the time into the video (default: on)",
     )
     g.add_argument("--force", action="store_true", help="overwrite an existing video")
+    add_web_options(p)
     p.set_defaults(func=cmd_demo)
 
 
@@ -64,6 +66,10 @@ def format_figures(figures: dict[str, float]) -> str:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
+    if args.web:  # the episode in a browser (cli/studio.py)
+        from .studio import demo_web
+
+        return demo_web(args, format_figures)
     if args.record:
         from ..gl import prepare_for_rendering  # imported here: only rendering needs it
 

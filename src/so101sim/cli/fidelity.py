@@ -89,7 +89,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from ..recording.paths import check_output_path
 
     episodes = parse_episodes(args.episodes) if args.episodes else None
-    if args.plot:
+    if args.plot is not None:
         check_output_path(args.plot, force=args.force, what="plot", suffixes=(".png",))
     result = compare(
         args.log,
@@ -97,12 +97,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
         episodes=episodes,
         calibration=args.calibration,
         model=args.model,
-        keep_traces=bool(args.plot),
+        keep_traces=args.plot is not None,
         units=args.units,
     )
     for w in result.warnings:
         _warn(w)
-    if args.plot:
+    if args.plot is not None:
         plot_overlay(result, args.plot, force=True)
     if args.json:
         print(json.dumps(result.to_json()))
@@ -120,7 +120,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         f"(degrees; gripper 0-100) the sim is closer to the real arm than the commands on "
         f"{better} of {len(result.joints)} joints"
     )
-    if args.plot:
+    if args.plot is not None:
         print(f"wrote {args.plot}")
     return 0
 

@@ -33,6 +33,7 @@ from ..errors import So101SimError
 from .commands import cmd_check, cmd_model_path, cmd_pose, cmd_teleop, cmd_view
 from .output import SIGNALS, _say, _signal_name, add_arm_option
 from .run import cmd_hold, cmd_run
+from .studio import add_web_options
 from .tools import (
     add_camera_options,
     add_commands,
@@ -114,6 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     summary = "run a motion file (default: the lab motion)"
     p = _command(sub, "run", cmd_run, summary, model, arm, headless, speed, strict, recording)
+    add_web_options(p)
     p.add_argument(
         "motion",
         nargs="?",
@@ -121,11 +123,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     summary = "hold the starting (rest) pose, as the lab's first script"
     p = _command(sub, "hold", cmd_hold, summary, model, arm, headless, speed, recording)
+    add_web_options(p)
     p.add_argument("--duration", type=float, default=30.0, help="seconds to hold (default 30)")
-    _command(sub, "view", cmd_view, "open the model in MuJoCo's interactive viewer", model)
+    add_web_options(
+        _command(sub, "view", cmd_view, "open the model in MuJoCo's viewer (or --web)", model),
+        linger=False,
+    )
     _command(sub, "model-path", cmd_model_path, "print the folder holding the shipped model")
     summary = "pose the arm in the viewer; prints each pose as a Python dict and as TOML"
-    _command(sub, "pose", cmd_pose, summary, model)
+    add_web_options(_command(sub, "pose", cmd_pose, summary, model), linger=False)
     summary = "simulate a motion file headless and judge it before hardware: PASS/FAIL"
     _add_check_options(_command(sub, "check", cmd_check, summary, model, arm, strict))
     summary = "mirror a LeRobot SO-101 leader arm on the sim in real time (Ctrl-C stops)"

@@ -9,6 +9,7 @@ command line.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import math
 import os
@@ -104,7 +105,9 @@ class _Signals:
         self.waiting: list[int] = []
         self.raised: int | None = None  # the signal last raised as Interrupted
         self._raised_at = -math.inf
-        self._previous: dict[int, Any] = {}
+        self._previous: dict[int, Any] = {}  # the handlers found by the command now running
+        self._originals: dict[int, Any] = {}  # those found before any command (not ours)
+        self._ended_at = -math.inf
 
     def __enter__(self) -> _Signals:
         self.finishing, self.waiting, self._raised_at = False, [], -math.inf
@@ -112,13 +115,35 @@ class _Signals:
         if threading.current_thread() is threading.main_thread():
             for name in self.NAMES:
                 if (signum := getattr(signal, name, None)) is not None:
-                    self._previous[signum] = signal.signal(signum, self._handle)
+                    previous = self._previous[signum] = signal.signal(signum, self._handle)
+                    if previous != self._swallow:
+                        self._originals[signum] = previous
         return self
 
     def __exit__(self, *exc: object) -> None:
+        # Interrupted: the command ends with 128 + the signal. One more signal on the way out
+        # (a second Ctrl-C within milliseconds, while Python shuts down) must not end the
+        # process by the signal instead: from now on they are swallowed (the next command
+        # restores the handlers it found first).
+        interrupted = self.raised is not None or bool(self.waiting)
+        self._ended_at = time.monotonic()
         for signum, previous in self._previous.items():
-            signal.signal(signum, previous)
+            signal.signal(signum, self._swallow if interrupted else previous)
         self._previous.clear()
+
+    def _swallow(self, signum: int, frame: object) -> None:
+        """After an interrupted command: a signal within a second is swallowed (the process
+        is on its way out with 128 + the first); a later one (a program that goes on after
+        main()) does what the handler found before the command does."""
+        if time.monotonic() - self._ended_at < 1.0:
+            self.waiting.append(signum)
+            return
+        original = self._originals.get(signum, signal.SIG_DFL)
+        signal.signal(signum, original)
+        if callable(original):
+            original(signum, frame)
+        elif original == signal.SIG_DFL:
+            os.kill(os.getpid(), signum)
 
     def _handle(self, signum: int, frame: object) -> None:
         now = time.monotonic()
@@ -154,6 +179,18 @@ def _signal_name(signum: int) -> str:
 
 SIGNALS = _Signals()
 """The handlers :func:`main` installs while a command runs."""
+
+
+@atexit.register
+def _ignore_signals_at_exit() -> None:
+    """After an interrupted command, a signal during the interpreter's shutdown (which puts
+    back the default handlers) would end the process by the signal instead of 128 + the
+    first: ignore them from here on (the process is ending)."""
+    if SIGNALS.raised is None and not SIGNALS.waiting:
+        return
+    for signum in SIGNALS._originals:
+        with contextlib.suppress(OSError, ValueError):
+            signal.signal(signum, signal.SIG_IGN)
 
 
 @contextlib.contextmanager

@@ -12,6 +12,11 @@ from .output import _progress_bar, _reporting, print_run
 from .tools import camera_options, output_hint
 
 if TYPE_CHECKING:
+    from collections.abc import Mapping
+
+    import mujoco
+    import numpy as np
+
     from ..motion.segments import Segment
     from ..units import Pose
     from .runplan import Outputs
@@ -41,36 +46,55 @@ def _outputs(args: argparse.Namespace) -> Outputs:
 
 
 def _run(
-    args: argparse.Namespace, segments: Sequence[Segment], start: Pose, strict: bool = False
+    args: argparse.Namespace,
+    segments: Sequence[Segment],
+    start: Pose,
+    strict: bool = False,
+    *,
+    model: mujoco.MjModel | None = None,
+    known: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> int:
     from .runplan import prepare_run  # imported here: it imports MuJoCo
+    from .studio import web_run  # --web: the studio in a browser (cli/studio.py)
 
-    run = prepare_run(  # checks every setting before anything opens or moves
-        segments,
-        start=start,
-        model=args.model,
-        arm=args.arm,
-        speed=args.speed,
-        headless=args.headless,
-        strict=strict,
-        outputs=_outputs(args),
-    )
-    if run.viewer.note:
-        print(run.viewer.note)
-    bar = _progress_bar(run.video_frames)
-    with _reporting(run.recorder, bar) if run.recorder else contextlib.nullcontext():
-        result = run.execute(progress=bar.update if bar is not None else None)
-    print_run(result)
+    with web_run(args) as web:  # None without --web
+        run = prepare_run(  # checks every setting before anything opens or moves
+            segments,
+            start=start,
+            model=web.model if web else (model if model is not None else args.model),
+            arm=args.arm,
+            speed=args.speed,
+            headless=args.headless or web is not None,
+            strict=strict,
+            outputs=_outputs(args),
+            known=known,
+        )
+        if run.viewer.note:
+            print(run.viewer.note)
+        bar = _progress_bar(run.video_frames)
+        with _reporting(run.recorder, bar) if run.recorder else contextlib.nullcontext():
+            result = run.execute(
+                progress=bar.update if bar is not None else None,
+                observers=web.observers(run) if web else (),
+            )
+        print_run(result)
     return 0
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     _prepare_rendering(args)
     from ..motion.file import lab_motion_path, load_motion  # imported here: they import MuJoCo
+    from .runplan import run_model
 
+    # the run's model first: the loader plans the tip moves on it, and the run reuses them
+    model = run_model(args.model, headless=args.headless, outputs=_outputs(args), arm=args.arm)
     with output_hint(args.motion):
-        motion = load_motion(args.motion if args.motion else lab_motion_path())
-    return _run(args, motion.steps, motion.start, strict=args.strict)
+        motion = load_motion(
+            args.motion if args.motion is not None else lab_motion_path(), model=model
+        )
+    return _run(
+        args, motion.steps, motion.start, strict=args.strict, model=model, known=motion.tip_plans
+    )
 
 
 def cmd_hold(args: argparse.Namespace) -> int:

@@ -15,16 +15,18 @@ and below the command line.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import mujoco
+import numpy as np
 
 from ..model.load import arm_units, load_model
-from ..motion.segments import RunResult, Segment, commanded_path, run_motion, validate_segments
+from ..motion.plan import PlannedMotion, plan_segments, run_plan
+from ..motion.segments import RunResult, Segment
 from ..recording.framing import sweep_frames
 from ..recording.settings import VideoSettings
 from ..sim.limited import check_limited_moves
@@ -49,7 +51,8 @@ class Outputs:
     @property
     def wanted(self) -> bool:
         """True when at least one file is asked for."""
-        return bool(self.video or self.plot or self.log)
+        # an empty path is asked for too (and refused by the output check), not "no file"
+        return any(p is not None for p in (self.video, self.plot, self.log))
 
 
 def check_strict(
@@ -69,10 +72,14 @@ class PreparedRun:
     """A motion checked and ready to run; :meth:`execute` runs it."""
 
     sim: Simulation
-    segments: tuple[Segment, ...]
+    plan: PlannedMotion  # planned and checked once: the framing and the run use it
     pacer: Pacer
     viewer: ViewerChoice
     recorder: Recorder | None = None
+
+    @property
+    def segments(self) -> tuple[Segment, ...]:
+        return self.plan.steps
 
     @property
     def duration(self) -> float:
@@ -88,20 +95,42 @@ class PreparedRun:
 
         return video_frames(self.duration, self.recorder.settings.fps)
 
-    def execute(self, progress: Callable[[int], Any] | None = None) -> RunResult:
+    def execute(
+        self, progress: Callable[[int], Any] | None = None, observers: Sequence[Observer] = ()
+    ) -> RunResult:
         """Run the motion, in the viewer if one was chosen (paced to the wall clock), writing
-        to the recorder's outputs; ``progress`` is called with 1 per video frame. The recorder
-        is left open: close it (``recorder.close()``) afterwards, also on an error."""
+        to the recorder's outputs; ``progress`` is called with 1 per video frame; ``observers``
+        also watch (the web studio). The recorder is left open: close it
+        (``recorder.close()``) afterwards, also on an error."""
         if progress is not None and self.recorder is not None and self.recorder.video is not None:
             self.recorder.video.progress = progress
         with ExitStack() as stack:
-            observers: list[Observer] = list(self.recorder.observers) if self.recorder else []
+            watching: list[Observer] = list(self.recorder.observers) if self.recorder else []
+            watching.extend(observers)
             if self.viewer.use:
                 handle = stack.enter_context(
                     open_viewer(self.sim.model, self.sim.data, mirror=True, quality="auto")
                 )
-                observers.append(ViewerObserver(handle, self.pacer))
-            return run_motion(self.sim.model, self.sim.data, self.segments, observers=observers)
+                watching.append(ViewerObserver(handle, self.pacer))
+            return run_plan(self.sim, self.plan, observers=watching)
+
+
+def run_model(
+    model: str | Path | mujoco.MjModel | None = None,
+    *,
+    headless: bool = False,
+    outputs: Outputs | None = None,
+    arm: object = None,
+) -> mujoco.MjModel:
+    """The model a run uses: ``model`` loaded (the shipped one by default) with the arm profile
+    ``arm`` (None: the default, see :func:`~so101sim.model.load_model`), the physics-only
+    copy when nothing will draw it (no viewer, no video: the same physics, a fifth of the
+    memory). Load it first and pass it to :func:`~so101sim.motion.file.load_motion` and
+    :func:`prepare_run`, so the tip moves the loader plans are the run's own."""
+    if isinstance(model, mujoco.MjModel):
+        return model
+    draws = choose_viewer(headless).use or (outputs is not None and outputs.video is not None)
+    return load_model(model, physics_only=not draws, arm=arm)
 
 
 def prepare_run(
@@ -113,37 +142,33 @@ def prepare_run(
     headless: bool = False,
     strict: bool = False,
     outputs: Outputs | None = None,
+    known: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
     arm: object = None,
 ) -> PreparedRun:
-    """Check a run of ``segments`` from ``start`` and make its recorder, opening nothing.
+    """Check a run of ``segments`` from ``start`` and make its recorder, opening nothing. The
+    motion is planned here, once (:func:`~so101sim.motion.plan.plan_segments`): the video's
+    framing and the run use that plan. ``known``: tip moves the motion-file loader planned on
+    the same model (``MotionFile.tip_plans``), not solved again.
 
     Raises:
         So101SimError: a bad speed, model, segment, output path or video setting, or (with
             ``strict``) a ``limited`` move too short for the joint limits.
     """
     viewer = choose_viewer(headless)
-    # nothing will draw it: the physics-only model (same physics, a fifth of the memory)
-    draws = viewer.use or (outputs is not None and outputs.video is not None)
-
-    def loaded() -> mujoco.MjModel:
-        if isinstance(model, mujoco.MjModel):
-            return model
-        return load_model(model, physics_only=not draws, arm=arm)  # arm: a profile, None: default
-
+    loaded = run_model(model, headless=headless, outputs=outputs, arm=arm)
     if strict:
-        check_strict(loaded(), segments, start)
+        check_strict(loaded, segments, start)
     pacer = Pacer(speed)  # checks the speed before anything opens
-    sim = Simulation(loaded(), initial_pose=start)
-    # every target and duration, before anything runs (tip moves planned in full)
-    validate_segments(sim.model, segments, start=sim.commanded_array())
+    sim = Simulation(loaded, initial_pose=start)
+    # every target and duration, before anything runs (tip moves planned in full), once
+    plan = plan_segments(sim.model, segments, sim.commanded_array(), known=known)
     recorder = None
     if outputs is not None and outputs.wanted:
         from ..recording import Recorder  # imported here: only a run that writes files needs it
 
         sweep = None
         if outputs.video is not None:  # the camera frames what the motion will sweep
-            _, path = commanded_path(sim.model, segments, start)
-            sweep = sweep_frames(sim.model, path)
+            sweep = sweep_frames(sim.model, plan.path()[1])
         recorder = Recorder(  # checks every path and setting
             sim,
             video=outputs.video,
@@ -153,7 +178,7 @@ def prepare_run(
             force=outputs.force,
             sweep=sweep,
         )
-    return PreparedRun(sim, tuple(segments), pacer, viewer, recorder)
+    return PreparedRun(sim, plan, pacer, viewer, recorder)
 
 
-__all__ = ["Outputs", "PreparedRun", "check_strict", "prepare_run"]
+__all__ = ["Outputs", "PreparedRun", "check_strict", "prepare_run", "run_model"]

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import MotionFileError, RecordingError
+from .studio import add_web_options
 
 SubParsers = Any  # argparse's private _SubParsersAction
 
@@ -131,14 +132,17 @@ def add_commands(
         description=(
             "Runs SCRIPT unchanged: its mujoco.viewer.launch_passive(m, d) records instead of "
             "opening a window, and its clock (time.time, time.sleep, ...) follows simulated "
-            "time, so a wall-clock '2 s' move is 2 s of simulated time. Arguments after '--' "
-            "go to the script."
+            "time, so a wall-clock '2 s' move is 2 s of simulated time. The video is drawn "
+            "when the script ends, the camera fitted to the whole motion. With --web the "
+            "script runs on the wall clock instead, shown live in a web browser (and recorded "
+            "with -o). Arguments after '--' go to the script."
         ),
     )
     p.add_argument("script", help="the Python script to run (as you run it with python)")
-    p.add_argument("-o", "--output", required=True, help="the video to write (.mp4)")
+    p.add_argument("-o", "--output", help="the video to write (.mp4); --record PATH says the same")
     p.add_argument("--title", help="a title in the caption and the video's metadata")
     p.add_argument("script_args", nargs="*", help="arguments for the script, after --")
+    add_web_options(p)
     p.set_defaults(func=cmd_record)
 
     p = sub.add_parser(
@@ -177,6 +181,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     from ..lab.handin import run_script  # imported here: it imports MuJoCo
     from ..recording import VideoSettings
 
+    args.output = record_output(args)
     script_args = list(args.script_args)
     video = {name: getattr(args, name) for name in ("width", "height", "fps", "camera")}
     video |= {"quality": args.quality, "caption": args.caption, "title": args.title}
@@ -184,6 +189,10 @@ def cmd_record(args: argparse.Namespace) -> int:
     VideoSettings(**video).validated()  # a bad setting stops before the script runs
     options = {**video, "plot": args.plot, "log": args.log, "force": args.force}
     options["arm"] = args.arm
+    if args.web:  # the script live in a browser (cli/studio.py)
+        from .studio import record_web
+
+        return record_web(args, options)
     try:
         run = run_script(args.script, script_args, args.output, **options)
     except Exception as exc:
@@ -200,6 +209,28 @@ def cmd_record(args: argparse.Namespace) -> int:
         print(f"wrote the {kind} to {path}")
     print(f"{args.script}: {run.simulated_seconds:.3f} s of simulated time")
     return run.exit_status
+
+
+def record_output(args: argparse.Namespace) -> str | None:
+    """``record``'s video: ``-o PATH`` or ``--record PATH`` (the same option under the name
+    ``run`` and ``hold`` use); one of them is needed, unless ``--web`` shows the script."""
+    from ..validation import check_path_text
+
+    for name in ("output", "record"):  # an empty name is no path (not "no video")
+        if getattr(args, name) is not None:
+            check_path_text(getattr(args, name), "video", error=RecordingError)
+    if args.output and args.record and Path(args.output) != Path(args.record):
+        raise RecordingError(
+            f"-o {args.output} and --record {args.record} name two videos; expected one "
+            "(they are the same option of record)"
+        )
+    output = args.output or args.record
+    if output is None and not args.web:
+        raise RecordingError(
+            "record needs the video to write; expected -o VIDEO.mp4 (or --web to show the "
+            "script in a browser)"
+        )
+    return output
 
 
 def cmd_workspace(args: argparse.Namespace) -> int:

@@ -26,8 +26,22 @@ from .core import N_BODY, Frame, Kinematics, for_model
 from .goal import DEFAULT_ITERATIONS, DEFAULT_RESTARTS, Goal, Settings, make_goal, point
 from .ik import Attempt, Descent, shortfall, solve
 
-MAX_LINE_STEPS = 1_000_000
-"""The most targets one line may be planned into (over half an hour at 2 ms a step)."""
+MAX_LINE_STEPS = 2_000_000
+"""The most targets one line may be planned into (over an hour at 2 ms a step: the longest
+move, :data:`~so101sim.profiles.MAX_MOVE_DURATION_S`, at the shipped model's timestep)."""
+EXACT_ROWS = 1_000
+"""Up to this many targets, every target is solved by IK on its own (2 s at 2 ms a step).
+A line of more targets is solved at knots along it (:data:`KNOTS_PER_SOLVE_STEP` per
+stretch of :data:`MAX_SOLVE_STEP_M` or :data:`MAX_SOLVE_STEP_RAD`, at least
+:data:`MIN_KNOTS`), and its targets are the joints interpolated between the knots (well under
+a micrometre off the line between two knots half a millimetre apart): the planning costs what
+the line's length and turn ask for, not what its duration does (a 3600 s line is 1.8 million
+targets)."""
+MIN_KNOTS = 256
+KNOTS_PER_SOLVE_STEP = 4
+MAX_LINE_SOLVES = 200_000
+"""The most IK solves one line is planned with (a bound on planning work: about ten
+seconds); a line asking for more is refused at once, saying so."""
 MAX_SOLVE_STEP_M = 0.002
 """The longest stretch of line between two IK solves: finer targets are solved as asked,
 coarser ones get solves in between, so that each warm start is close to its answer."""
@@ -41,7 +55,9 @@ class LinePlan:
 
     targets: np.ndarray  # (n, 6) arm units, JOINT_NAMES order; every row within the limits
     fractions: np.ndarray  # (n,) how far along the line each row is, 0 (start) .. 1 (end)
-    tips: np.ndarray  # (n, 3) where each row puts the tip, metres, base frame
+    # (n, 3) where each row puts the tip, metres, base frame (for more than EXACT_ROWS rows:
+    # exact at EXACT_ROWS rows spread evenly, interpolated between them)
+    tips: np.ndarray
     start: np.ndarray  # (3,) the tip at the start pose
     end: np.ndarray  # (3,) the target
     deviation_mm: float  # the largest distance of ``tips`` from the line
@@ -194,29 +210,87 @@ def plan_line(
             )
         line = _Line(kin.frame_at(q), goal, kin.frame_at(end.q))
         descent = Descent(kin, line.goal(1.0))  # every goal along the line has the same rows
-        rows = np.empty((len(fractions), N_BODY))
-        done = 0.0
-        for i, s in enumerate(fractions):
-            n = line.substeps(s - done)
-            for k in range(1, n + 1):
-                here = done + (s - done) * k / n
-                descent.goal = line.goal(here)
-                att = descent.run(q, DEFAULT_ITERATIONS)
-                if not settings.accepts(att):
-                    raise _blocked(kin, line, here, att, settings)
-                q = att.q
-            rows[i], done = q, s
+        if len(fractions) <= EXACT_ROWS:
+            rows = _solve_rows(kin, line, descent, settings, q, fractions)
+        else:  # solved at knots, the joints interpolated between them
+            knots = _knots(line)
+            solved = _solve_rows(kin, line, descent, settings, q, knots)
+            at = np.concatenate([[0.0], knots])
+            qs = np.vstack([q[None, :], solved])
+            rows = np.column_stack([np.interp(fractions, at, qs[:, j]) for j in range(N_BODY)])
         targets = np.repeat(values[None, :], len(fractions), axis=0)
         targets[:, :N_BODY] = np.degrees(rows)
         return _plan(kin, line, values, targets, fractions)
 
 
+def _knots(line: _Line) -> np.ndarray:
+    """The fractions of a long line solved by IK: evenly spaced, finer than the solve step.
+
+    Raises:
+        SettingError: the line asks for more than :data:`MAX_LINE_SOLVES` solves.
+    """
+    count = max(MIN_KNOTS, KNOTS_PER_SOLVE_STEP * line.substeps(1.0))
+    if count > MAX_LINE_SOLVES:
+        raise SettingError(
+            f"the straight line ({line.length * 1000:.0f} mm, turning "
+            f"{math.degrees(line.turn):.0f}°) needs {count} IK solves; expected a line that "
+            f"needs at most {MAX_LINE_SOLVES} (the bound on planning work): split it into "
+            "shorter lines, or use path='joint'"
+        )
+    return np.arange(1, count + 1) / count
+
+
+def _solve_rows(
+    kin: Kinematics,
+    line: _Line,
+    descent: Descent,
+    settings: Settings,
+    q: np.ndarray,
+    fractions: np.ndarray,
+) -> np.ndarray:
+    """Joint angles (radians) at each fraction of the line, each solve warm-started from the
+    previous one, with solves in between where two fractions are far apart.
+
+    Raises:
+        UnreachableError: a point of the line is out of reach.
+        SettingError: the fractions ask for more than :data:`MAX_LINE_SOLVES` solves.
+    """
+    ds = np.abs(np.diff(np.concatenate([[0.0], fractions])))
+    stretches = max(line.length / MAX_SOLVE_STEP_M, line.turn / MAX_SOLVE_STEP_RAD)
+    solves = int(np.maximum(1, np.ceil(ds * stretches)).sum())
+    if solves > MAX_LINE_SOLVES:
+        raise SettingError(
+            f"the straight line ({line.length * 1000:.0f} mm) asked at {len(fractions)} "
+            f"fractions needs {solves} IK solves; expected at most {MAX_LINE_SOLVES} (the "
+            "bound on planning work): ask for fewer fractions that go back and forth"
+        )
+    rows = np.empty((len(fractions), N_BODY))
+    done = 0.0
+    for i, s in enumerate(fractions):
+        n = line.substeps(s - done)
+        for k in range(1, n + 1):
+            here = done + (s - done) * k / n
+            descent.goal = line.goal(here)
+            att = descent.run(q, DEFAULT_ITERATIONS)
+            if not settings.accepts(att):
+                raise _blocked(kin, line, here, att, settings)
+            q = att.q
+        rows[i], done = q, s
+    return rows
+
+
 def _plan(
     kin: Kinematics, line: _Line, start: np.ndarray, targets: np.ndarray, fractions: np.ndarray
 ) -> LinePlan:
-    tips = kin.tip_positions(targets)
-    everything = np.vstack([start[None, :], targets])
-    halfway = kin.tip_positions((everything[1:] + everything[:-1]) / 2.0)
+    n = len(targets)
+    # forward kinematics of every row up to EXACT_ROWS; beyond, of EXACT_ROWS rows spread
+    # evenly (the rows between are joint interpolations: their tips are interpolated too)
+    rows = np.arange(n) if n <= EXACT_ROWS else np.unique(np.linspace(0, n - 1, EXACT_ROWS))
+    rows = rows.astype(int)
+    exact = kin.tip_positions(targets[rows])
+    tips = exact if n <= EXACT_ROWS else _interpolated(rows, exact, n)
+    before = np.vstack([start[None, :], targets[rows[1:] - 1]]) if n > 1 else start[None, :]
+    halfway = kin.tip_positions((before + targets[rows]) / 2.0)
     p0, p1 = line.p0.copy(), line.p1.copy()
     return LinePlan(
         targets=targets,
@@ -227,6 +301,12 @@ def _plan(
         deviation_mm=float(_segment_distances(tips, p0, p1).max()) * 1000.0,
         between_mm=float(_segment_distances(halfway, p0, p1).max()) * 1000.0,
     )
+
+
+def _interpolated(rows: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
+    """``values`` known at ``rows`` (sorted), linearly interpolated to every row ``0..n-1``."""
+    at = np.arange(n)
+    return np.column_stack([np.interp(at, rows, values[:, j]) for j in range(values.shape[1])])
 
 
 def line_deviation(

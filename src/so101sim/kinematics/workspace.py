@@ -16,9 +16,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from ..errors import OutputPathError
 from ..units import STARTING_POSE, ZERO_POSE
-from ..validation import check_count, check_range
+from ..validation import check_count, check_output_path, check_range
 from .core import N_BODY, Kinematics, for_model
 from .geometry import planar_arm_of
 from .ik import solve_ik
@@ -138,27 +137,6 @@ def is_reachable(
     return result.reachable
 
 
-def _check_plot_path(path: str | os.PathLike[str], force: bool) -> Path:
-    p = Path(path).expanduser()
-    if p.suffix.lower() not in PLOT_SUFFIXES:
-        raise OutputPathError(
-            f"workspace plot {str(p)!r} has the wrong extension; expected one of "
-            f"{', '.join(PLOT_SUFFIXES)}"
-        )
-    folder = p.parent
-    if not folder.is_dir() or p.is_dir():
-        raise OutputPathError(
-            f"cannot write the workspace plot {str(p)!r}: {str(folder)!r} is not an existing "
-            "folder, or the path is a folder; expected a file name in an existing folder"
-        )
-    if p.exists() and not force:
-        raise OutputPathError(
-            f"the workspace plot {str(p)!r} already exists; expected a new file name, or "
-            "--force (force=True in Python) to overwrite it"
-        )
-    return p
-
-
 def plot_workspace(
     path: str | os.PathLike[str],
     *,
@@ -175,11 +153,14 @@ def plot_workspace(
     written. Returns the path.
 
     Raises:
-        OutputPathError: the folder does not exist, the extension is not one of
-            ``.png/.svg/.pdf``, or the file exists and ``force`` is False.
+        OutputPathError: the path cannot be written (see
+            :func:`so101sim.validation.check_output_path`: a missing or read-only folder, a
+            name too long, ...), the extension is not one of ``.png/.svg/.pdf``, or the file
+            exists and ``force`` is False.
         SettingError: ``pitch``, ``samples`` or ``seed`` is not valid.
     """
-    p = _check_plot_path(path, force)
+    # the one output check (an empty, too long or read-only path fails now, not after the work)
+    p = check_output_path(path, force=force, what="workspace plot", suffixes=PLOT_SUFFIXES)
     kin = for_model(model)
     rows = []
     for pt in (None, pitch):

@@ -6,20 +6,19 @@ An app layer: may import ``so101sim.preflight``, ``so101sim.recording``, ``so101
 :mod:`.simclock` (simulated time for scripts), :mod:`.starter` (``so101sim examples``).
 """
 
-from .helpers import (
-    convert_to_dictionary,
-    convert_to_list,
-    hold_position,
-    move_to_pose,
-    send_position_command,
-    set_initial_pose,
-)
+from typing import TYPE_CHECKING
 
-__all__ = [
-    "convert_to_dictionary",
-    "convert_to_list",
-    "hold_position",
-    "move_to_pose",
-    "send_position_command",
-    "set_initial_pose",
-]
+from .._lazy import lazy_names
+
+# The helpers load on first use (they import MuJoCo); so101sim.lab.starter and .simclock do not.
+if TYPE_CHECKING:
+    from .helpers import (
+        convert_to_dictionary,
+        convert_to_list,
+        hold_position,
+        move_to_pose,
+        send_position_command,
+        set_initial_pose,
+    )
+
+__getattr__, __dir__ = lazy_names(__name__)

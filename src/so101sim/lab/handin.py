@@ -12,7 +12,10 @@ Two ways, the same result:
   handout's wall-clock loops run exactly the simulated time they ask for.
 
 Frames are taken at the video's rate in *simulated* time; a title (the student's name) goes
-in the caption and the video's metadata.
+in the caption, the video's metadata and the plot's heading. The video is drawn when the
+recording closes (:class:`DeferredVideo` keeps each frame's state meanwhile, a few hundred bytes
+each), so that the camera is fitted to the whole motion the script made, as ``so101sim run
+--record`` fits it to the motion file's path: the arm's sweep fills the frame in every view.
 """
 
 from __future__ import annotations
@@ -33,10 +36,60 @@ import numpy as np
 
 from ..errors import So101SimError, ViewerError
 from ..recording import Recorder, VideoSettings
+from ..recording.inline import RecordedFiles
 from ..sim.simulation import Observer, Simulation, Trace
+from ..validation import check_input_file, check_output_path
 from .simclock import SimClock, simulated_time
 
 PathArg = str | os.PathLike[str] | None
+
+
+class DeferredVideo(Observer):
+    """Stands in for a :class:`~so101sim.recording.VideoRecorder` while a script runs: it keeps
+    the state of each frame due (time, joint positions, mocap poses, phase) and draws nothing;
+    :meth:`replay` then gives the video its sweep (the arm's positions over the run, for the
+    camera's framing) and draws every frame kept, at the same simulated times."""
+
+    def __init__(self, video: Any, fps: float) -> None:
+        self.video = video
+        self.period = 1.0 / fps
+        self.states: list[tuple[float, np.ndarray, np.ndarray, np.ndarray, str]] = []
+        self.phase = ""
+        self._t0: float | None = None
+        self._count = 0
+        self._last = -np.inf
+
+    def next_time(self) -> float:
+        if self._t0 is None:
+            return -np.inf
+        return self._t0 + self._count * self.period - 1e-9
+
+    def on_steps(self, trace: Trace, phase: str) -> None:
+        self.phase = phase
+
+    def on_time(self, m: mujoco.MjModel, d: mujoco.MjData) -> bool:
+        t = float(d.time)
+        if self._t0 is None or t < self._last - 1e-9:  # first frame, or a reset
+            self._t0, self._count = t, 0
+        self.states.append((t, d.qpos.copy(), d.mocap_pos.copy(), d.mocap_quat.copy(), self.phase))
+        self._last = t
+        self._count += 1
+        return True
+
+    def replay(self, m: mujoco.MjModel) -> None:
+        """Fit the camera to the frames kept and draw them into the video (once)."""
+        states, self.states = self.states, []
+        if not states:
+            return
+        every = max(1, len(states) // 400)  # the sweep: at most ~400 poses to frame
+        self.video.sweep = [q for _, q, *_ in states[::every]] + [states[-1][1]]
+        d = mujoco.MjData(m)
+        for t, qpos, mocap_pos, mocap_quat, phase in states:
+            d.qpos[:], d.mocap_pos[:], d.mocap_quat[:] = qpos, mocap_pos, mocap_quat
+            d.time = t
+            mujoco.mj_forward(m, d)
+            self.video.phase = phase
+            self.video.on_time(m, d)
 
 
 class RecordingViewer(Observer):
@@ -63,6 +116,11 @@ class RecordingViewer(Observer):
     ) -> None:
         self.sim = Simulation.attach(m, d)
         self.recorder = Recorder(m, video=video, plot=plot, log=log, settings=settings, force=force)
+        self.deferred: DeferredVideo | None = None
+        if self.recorder.video is not None:  # drawn at close, framed on the whole motion
+            self.deferred = DeferredVideo(self.recorder.video, self.recorder.settings.fps)
+            observers = self.recorder.observers
+            observers[observers.index(self.recorder.video)] = self.deferred
         self.phase = phase
         self.opt = mujoco.MjvOption()
         self.cam = mujoco.MjvCamera()
@@ -72,20 +130,22 @@ class RecordingViewer(Observer):
         self._closed = False
         self._started = False
         self._last_time = float(d.time)
+        self.also: list[Any] = []  # viewers shown alongside (the web studio): sync(), Observer
 
     # -- the Observer side (the lab helpers, Simulation.move_to(viewer=...))
     def on_start(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
         self._started = True
-        for o in self.recorder.observers:
+        for o in [*self.recorder.observers, *self.also]:
             o.on_start(m, d)
 
     def next_time(self) -> float:
         if self._closed:
             return float("inf")
-        return min((o.next_time() for o in self.recorder.observers), default=float("inf"))
+        observers = [*self.recorder.observers, *self.also]
+        return min((o.next_time() for o in observers), default=float("inf"))
 
     def on_time(self, m: mujoco.MjModel, d: mujoco.MjData) -> bool:
-        for o in self.recorder.observers:
+        for o in [*self.recorder.observers, *self.also]:
             if o.next_time() <= d.time + 1e-12:
                 o.on_time(m, d)
         return not self._closed
@@ -93,7 +153,7 @@ class RecordingViewer(Observer):
     def on_steps(self, trace: Trace, phase: str) -> None:
         if len(trace.time):
             self._last_time = float(trace.time[-1])
-        for o in self.recorder.observers:
+        for o in [*self.recorder.observers, *self.also]:
             o.on_steps(trace, phase or self.phase)
 
     # -- the viewer side (handout-style loops)
@@ -127,8 +187,16 @@ class RecordingViewer(Observer):
         """Finish the files (once); return {"video"/"plot"/"log": path} of those written."""
         if not self._closed:
             self._closed = True
-            self.outputs = self.recorder.close()
-        return dict(self.outputs)
+            try:  # interrupted while drawing: the frames drawn so far are the video
+                if self.deferred is not None:
+                    self.deferred.replay(self.sim.model)
+            finally:
+                self.outputs = self.recorder.close()
+        return RecordedFiles(self.outputs)
+
+    def _repr_html_(self) -> str:
+        """In Jupyter: the files written, the video and the plot shown inline."""
+        return RecordedFiles(self.outputs)._repr_html_()
 
     def __enter__(self) -> RecordingViewer:
         return self
@@ -202,15 +270,20 @@ class NothingRecordedError(So101SimError, RuntimeError):
 class _Session:
     """The one recording of a script run: made when the script first opens a viewer."""
 
-    def __init__(self, clock: SimClock, video: PathArg, options: dict[str, Any]) -> None:
+    def __init__(
+        self, clock: SimClock, video: PathArg, options: dict[str, Any], live: Any = None
+    ) -> None:
         self.clock = clock
         self.video = video
         self.options = options
+        self.live = live
         self.viewer: RecordingViewer | None = None
 
     def launch_passive(self, m: mujoco.MjModel, d: mujoco.MjData, **_: Any) -> RecordingViewer:
         if self.viewer is None:
             self.viewer = record(m, d, self.video, **self.options)
+            if self.live is not None:
+                self.viewer.also.append(self.live(m, d))
         elif self.viewer.sim.data is not d:
             raise ViewerError(
                 "the script opened a second viewer on other data; so101sim record follows "
@@ -313,8 +386,30 @@ def _arm_models(arm: object) -> Iterator[None]:
             mujoco.MjModel.from_xml_path = original  # type: ignore[method-assign]
 
 
+def _check_outputs(video: PathArg, options: dict[str, Any]) -> None:
+    """The outputs of a script run, checked as :class:`Recorder` will check them."""
+    from ..recording.paths import check_distinct
+    from ..recording.plot import PLOT_SUFFIXES
+    from ..recording.video import VIDEO_SUFFIXES
+
+    force = bool(options.get("force", False))
+    plot, log = options.get("plot"), options.get("log")
+    if video is not None:  # None: the script is only shown (record --web)
+        check_output_path(video, force=force, what="video", suffixes=VIDEO_SUFFIXES)
+    if plot is not None:
+        check_output_path(plot, force=force, what="plot", suffixes=PLOT_SUFFIXES)
+    if log is not None:
+        check_output_path(log, force=force, what="log")
+    check_distinct(video, plot, log)
+
+
 def run_script(
-    script: str | os.PathLike[str], args: Sequence[str], video: PathArg, **options: Any
+    script: str | os.PathLike[str],
+    args: Sequence[str],
+    video: PathArg,
+    *,
+    live: Any = None,
+    **options: Any,
 ) -> ScriptRun:
     """Run a handout-style ``script`` (with ``args``) headless and record it to ``video``.
 
@@ -327,23 +422,31 @@ def run_script(
 
     ``arm`` (an option): an arm profile for the models the script loads (see
     :func:`_arm_models`); None leaves them as the script makes them.
+    ``live``: a function ``live(m, d)`` returning a viewer (``sync()``, and an
+    :class:`~so101sim.sim.Observer`) shown alongside, e.g. the web studio's
+    :class:`~so101sim.studio.live.StudioViewer`; the script then runs on the wall clock (the
+    live viewer paces it to real time), and ``video`` may be None (nothing recorded).
 
     Raises:
         NothingRecordedError: the script ended without opening a viewer.
+        SettingError: ``script`` is not a readable file (missing, a folder, a device, ...).
+        OutputPathError: an output (``video``, ``plot``, ``log``) cannot be written.
     """
-    path = Path(script)
-    if not path.is_file():
-        raise So101SimError(f"script {str(path)!r} does not exist; expected a Python file")
+    # what the script is when not a file (a folder, /dev/zero), and every output, checked
+    # before the script runs (the recording opens only when the script opens its viewer)
+    path = check_input_file(script, "script", expected="a Python file (the script to run)")
+    _check_outputs(video, options)
     arm = options.pop("arm", None)
     clock = SimClock()
-    session = _Session(clock, video, options)
+    session = _Session(clock, video, options, live)
     status, message = 0, ""
+    clocked = simulated_time(clock) if live is None else contextlib.nullcontext()
     try:
         with (
             _script_environment(path, args),
             _arm_models(arm),
             _patched_viewer(session),
-            simulated_time(clock),
+            clocked,
         ):
             try:
                 runpy.run_path(str(path), run_name="__main__")

@@ -42,6 +42,7 @@ from ..model.load import default_units
 from ..preflight.check import Thresholds, describe
 from ..preflight.judge import judge
 from ..preflight.measure import StepRecorder, collect
+from ..preflight.states import StateRecorder, vectorisable
 from ..sim.simulation import Observer, SegmentResult, Simulation
 from ..units import JOINT_NAMES, Pose
 
@@ -157,10 +158,14 @@ def hold_position(
 def _watched(
     sim: Simulation, what: str, run: Callable[[list[Observer]], SegmentResult]
 ) -> SegmentResult:
-    """Run one helper's segment while watching every step as ``so101sim check`` does, then log
-    one warning per problem found (tracking error, saturated actuator, contact) with the time
-    and the joint or bodies: the lab helpers say when a run went wrong."""
-    rec = StepRecorder(sim.model)
+    """Run one helper's segment, then log one warning per problem ``so101sim check`` would find
+    in it (tracking error, saturated actuator, contact) with the time and the joint or bodies:
+    the lab helpers say when a run went wrong. The figures come after the segment from the
+    states the stepping kernel recorded, block by block in C (:class:`StateRecorder`,
+    vectorised); a model whose actuator forces do not follow from the states (not position
+    actuators on joints) is watched after every step instead (:class:`StepRecorder`)."""
+    rec: StateRecorder | StepRecorder
+    rec = StateRecorder(sim.model) if vectorisable(sim.model) else StepRecorder(sim.model)
     seg = run([rec])
     th = Thresholds()
     measured = collect(sim.model, [], [seg], rec, th.max_effort)

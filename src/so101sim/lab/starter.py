@@ -9,6 +9,7 @@ from importlib import resources
 from pathlib import Path
 
 from ..errors import OutputPathError
+from ..validation import checked_path
 
 
 def examples_dir() -> Path:
@@ -33,10 +34,11 @@ def copy_examples(folder: str | Path, *, force: bool = False) -> list[Path]:
     """Copy every shipped example into ``folder`` (made if missing); return the new paths.
 
     Raises:
-        OutputPathError: ``folder`` is a file, or an example is already there and ``force``
-            is False (nothing is copied then).
+        OutputPathError: ``folder`` is empty, too long for the file system, a file, or an
+            example is already there and ``force`` is False (nothing is copied then).
     """
-    dest = Path(folder).expanduser()
+    # an empty name would copy into the current folder; a name too long fails in a mkdir
+    dest = checked_path(folder, "examples folder", error=OutputPathError)
     if dest.exists() and not dest.is_dir():
         raise OutputPathError(f"{str(dest)!r} is a file; expected a folder to copy examples into")
     sources = sorted(

@@ -11,14 +11,20 @@ binary format (MJB) loads in a fifth of that time, bit for bit the same model.
 * **Where:** ``$SO101SIM_CACHE_DIR``, else ``$XDG_CACHE_HOME/so101sim``, else
   ``~/.cache/so101sim``. ``SO101SIM_NO_CACHE=1`` turns the cache off.
 * **Physics only:** ``load_or_compile(..., physics_only=True)`` keeps a second entry, the model
-  without its mesh triangles and their trees (:mod:`so101sim.model.trim`): 14 MB instead of 67,
-  for runs that never draw.
-* **Fast key:** each model folder's digest is remembered (``digests/``) with its files' sizes,
-  times and inodes; while they are unchanged, the files are not read and hashed again.
-* **Safe:** an entry is written under a temporary name in the same folder and renamed, so two
-  processes never see half a file; an entry that does not load is deleted and the model is
-  compiled. Any failure to read or write the cache (a read-only home, a full disk) falls back
-  to compiling, with a DEBUG log line.
+  without its visual geoms, its collision meshes as their convex hulls
+  (:mod:`so101sim.model.trim`): 18 MB instead of 67, for runs that never draw.
+* **Verified:** beside each entry, ``<entry>.digest`` holds its size and the CRC-32 of its
+  bytes, checked before MuJoCo reads them (a truncated or changed entry never reaches MuJoCo;
+  CRC-32 finds any burst of changed bits up to 32 long, and others but for 1 in 4 billion, at
+  a sixth of SHA-256's cost); a loaded model is
+  then checked against the source file (parsed, not compiled): its joints (names, ranges),
+  actuators (names, gains) and options (timestep, gravity). A bad or foreign entry is deleted
+  and the model compiled again, with one WARNING through :mod:`logging`.
+* **Safe:** the digest and then the entry are written under temporary names in the same folder
+  and renamed, so two processes never see half a file. Any failure to read or write the cache (a
+  read-only home, a full disk) falls back to compiling, with a DEBUG log line.
+
+The key hashes the folder's files on every load: about 10 ms for the SO-101's 16 MB.
 """
 
 from __future__ import annotations
@@ -28,12 +34,13 @@ import hashlib
 import logging
 import os
 import tempfile
-import time
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
+import numpy as np
 
 from . import trim as modeltrim
 
@@ -43,9 +50,9 @@ MAX_HASHED_BYTES = 512 * 1024 * 1024
 """A model folder larger than this is not cached (hashing it would cost more than compiling)."""
 
 ENTRY_SUFFIX = ".mjb"
+DIGEST_SUFFIX = ".digest"  # beside each entry: its size and the CRC-32 of its bytes
 REFUSED_SUFFIX = ".refused"  # a model the physics-only copy was refused for (empty file)
-MEMO_FOLDER = "digests"  # each model folder's content digest, with its files' stat results
-MEMO_SETTLE_S = 2.0  # files changed more recently than this are hashed again next time
+FORMAT = 2  # part of every key: raised when what an entry holds or how it is checked changes
 
 
 def cache_dir() -> Path:
@@ -65,31 +72,13 @@ def enabled() -> bool:
 
 def _folder_digest(folder: Path) -> str | None:
     """SHA-256 over the names and contents of every file under ``folder`` (sorted), or None
-    when it holds more than :data:`MAX_HASHED_BYTES` or cannot be read.
-
-    The digest is remembered in the cache folder with each file's size, modification and
-    change times and inode: while none of them changed, the files are not read again (files
-    changed in the last :data:`MEMO_SETTLE_S` seconds are not remembered)."""
+    when it holds more than :data:`MAX_HASHED_BYTES` or cannot be read."""
     try:
         files = sorted(p for p in folder.rglob("*") if p.is_file())
-        stats = [(p, p.stat()) for p in files]
-    except OSError as exc:
-        log.debug("model cache: cannot list %s: %s", folder, exc)
-        return None
-    if sum(st.st_size for _, st in stats) > MAX_HASHED_BYTES:
-        return None
-    signature = "\n".join(
-        f"{p.relative_to(folder)}\t{st.st_size}\t{st.st_mtime_ns}\t{st.st_ctime_ns}\t{st.st_ino}"
-        for p, st in stats
-    )
-    memo = _digest_memo(folder)
-    with contextlib.suppress(OSError, ValueError):
-        digest, _, remembered = memo.read_text("utf-8", "surrogateescape").partition("\n")
-        if remembered == signature and len(digest) == 64:
-            return digest
-    h = hashlib.sha256()
-    try:
-        for p, _ in stats:
+        if sum(p.stat().st_size for p in files) > MAX_HASHED_BYTES:
+            return None
+        h = hashlib.sha256()
+        for p in files:
             h.update(str(p.relative_to(folder)).encode())
             h.update(b"\0")
             h.update(p.read_bytes())
@@ -97,22 +86,7 @@ def _folder_digest(folder: Path) -> str | None:
     except OSError as exc:
         log.debug("model cache: cannot hash %s: %s", folder, exc)
         return None
-    digest = h.hexdigest()
-    # A file changed in the last moments could change again within the file system's clock
-    # tick and keep its times: remember only files that have settled.
-    settled = time.time_ns() - MEMO_SETTLE_S * 1e9
-    if all(st.st_ctime_ns < settled and st.st_mtime_ns < settled for _, st in stats):
-        try:
-            text = f"{digest}\n{signature}"
-            _write_with(memo, lambda tmp: Path(tmp).write_text(text, "utf-8", "surrogateescape"))
-        except (OSError, ValueError) as exc:
-            log.debug("model cache: cannot write %s: %s", memo, exc)
-    return digest
-
-
-def _digest_memo(folder: Path) -> Path:
-    name = hashlib.sha256(str(folder.resolve()).encode()).hexdigest()[:32]
-    return cache_dir() / MEMO_FOLDER / f"{name}.txt"
+    return h.hexdigest()
 
 
 def key_for(path: Path, variant: str = "") -> str | None:
@@ -120,16 +94,40 @@ def key_for(path: Path, variant: str = "") -> str | None:
     digest = _folder_digest(path.parent)
     if digest is None:
         return None
-    h = hashlib.sha256(f"{digest}\0{path.name}\0{mujoco.__version__}\0{variant}".encode())
+    text = f"{digest}\0{path.name}\0{mujoco.__version__}\0{variant}\0{FORMAT}"
+    h = hashlib.sha256(text.encode())
     return h.hexdigest()[:32]
 
 
+def _digest_of(entry: Path) -> Path:
+    return entry.with_name(entry.name + DIGEST_SUFFIX)
+
+
+def _digest(size: int, crc: int) -> str:
+    return f"{size} crc32 {crc:08x}"
+
+
+def _file_digest(path: Path) -> str:
+    """:func:`_digest` of the file ``path``, read in pieces (never held whole in memory)."""
+    crc, size = 0, 0
+    with path.open("rb") as f:
+        while chunk := f.read(1 << 20):
+            crc, size = zlib.crc32(chunk, crc), size + len(chunk)
+    return _digest(size, crc)
+
+
 def _write(entry: Path, model: mujoco.MjModel) -> None:
-    _write_with(entry, lambda tmp: mujoco.mj_saveModel(model, tmp, None))
-
-
-def _write_bytes(entry: Path, data: bytes) -> None:
+    """Save ``model`` as ``entry``, its digest first (both renamed into place)."""
+    data = _mjb_bytes(model)
+    digest = _digest(len(data), zlib.crc32(data))
+    _write_with(_digest_of(entry), lambda tmp: Path(tmp).write_text(digest))
     _write_with(entry, lambda tmp: Path(tmp).write_bytes(data))
+
+
+def _mjb_bytes(model: mujoco.MjModel) -> bytes:
+    buffer = np.empty(mujoco.mj_sizeModel(model), dtype=np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    return buffer.tobytes()
 
 
 def _write_with(entry: Path, write: Callable[[str], object]) -> None:
@@ -145,14 +143,67 @@ def _write_with(entry: Path, write: Callable[[str], object]) -> None:
             os.unlink(tmp)
 
 
-def _read(entry: Path) -> mujoco.MjModel | None:
-    try:
-        return mujoco.MjModel.from_binary_path(str(entry))
-    except (ValueError, OSError, mujoco.FatalError) as exc:
-        log.debug("model cache: %s does not load (%s); compiling again", entry, exc)
-        with contextlib.suppress(OSError):
-            entry.unlink()
+def _read(entry: Path, source: Path) -> mujoco.MjModel | None:
+    """The model in ``entry`` if it is whole (its digest) and is the model of ``source``; else
+    None, the entry deleted and one warning logged. None without a word when there is none."""
+    if not entry.is_file():
         return None
+    try:
+        actual = _file_digest(entry)
+        expected = _digest_of(entry).read_text(encoding="ascii").strip()
+    except (OSError, UnicodeDecodeError) as exc:
+        problem = f"cannot be read or has no digest ({exc})"
+    else:
+        problem = "does not match its digest (truncated or changed)"
+        if actual == expected:
+            try:
+                # an entry is only ever replaced whole (renamed into place): what MuJoCo reads
+                # here is what was hashed, or another whole entry of the same key
+                model = mujoco.MjModel.from_binary_path(str(entry))
+                problem = _foreign(model, source)
+            except (ValueError, OSError, mujoco.FatalError) as exc:
+                problem = f"does not load ({exc})"
+            if problem is None:
+                return model
+    log.warning("model cache: %s %s; compiling %s again", entry, problem, source)
+    for path in (entry, _digest_of(entry)):
+        with contextlib.suppress(OSError):
+            path.unlink()
+    return None
+
+
+def _foreign(model: mujoco.MjModel, source: Path) -> str | None:
+    """How ``model`` differs from the model file ``source`` (parsed, not compiled): its joints
+    (names, ranges), actuators (names, gains) or options (timestep, gravity); None if it
+    does not."""
+    try:
+        spec = mujoco.MjSpec.from_file(str(source))
+    except (ValueError, OSError, mujoco.FatalError) as exc:
+        return f"cannot be checked against its source ({exc})"
+    angular = (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_BALL)
+    scale = {
+        j.name: np.pi / 180 if spec.compiler.degree and j.type in angular else 1.0
+        for j in spec.joints
+    }
+    joints = {j.name: np.asarray(j.range) * scale[j.name] for j in spec.joints}
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, i) for i in range(model.njnt)]
+    if sorted(map(str, names)) != sorted(joints):
+        return "is another model (other joints)"
+    for i, name in enumerate(names):
+        if not np.allclose(model.jnt_range[i], joints[str(name)], rtol=1e-9, atol=1e-12):
+            return f"is another model (the range of joint {name!r})"
+    actuators = {a.name: np.asarray(a.gainprm) for a in spec.actuators}
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) for i in range(model.nu)]
+    if sorted(map(str, names)) != sorted(actuators):
+        return "is another model (other actuators)"
+    for i, name in enumerate(names):
+        if not np.array_equal(model.actuator_gainprm[i], actuators[str(name)]):
+            return f"is another model (the gains of actuator {name!r})"
+    if model.opt.timestep != spec.option.timestep or not np.array_equal(
+        model.opt.gravity, spec.option.gravity
+    ):
+        return "is another model (its timestep or gravity)"
+    return None
 
 
 def load_or_compile(
@@ -166,8 +217,8 @@ def load_or_compile(
     exists, else ``compile_fn()`` (then saved to the cache when possible).
 
     ``physics_only``: the model without what only drawing and ray casting use
-    (:func:`so101sim.model.trim.physics_only`: the same physics bit for bit, about a fifth of
-    the memory), kept as its own entry; the full model when the cache is off or unwritable or
+    (:func:`so101sim.model.trim.physics_only`: the same physics, about a quarter of the
+    memory), kept as its own entry; the full model when the cache is off or unwritable or
     the model cannot be trimmed."""
     if not enabled():
         return compile_fn()
@@ -177,11 +228,10 @@ def load_or_compile(
     if physics_only:
         return _physics_only(path, compile_fn, variant, key)
     entry = cache_dir() / f"{key}{ENTRY_SUFFIX}"
-    if entry.is_file():
-        model = _read(entry)
-        if model is not None:
-            log.debug("model cache: loaded %s from %s", path, entry)
-            return model
+    model = _read(entry, path)
+    if model is not None:
+        log.debug("model cache: loaded %s from %s", path, entry)
+        return model
     model = compile_fn()
     try:
         _write(entry, model)
@@ -197,24 +247,28 @@ def _physics_only(
     name = f"{key}-physics{modeltrim.VERSION}"
     entry = cache_dir() / f"{name}{ENTRY_SUFFIX}"
     refused = cache_dir() / f"{name}{REFUSED_SUFFIX}"  # trimming refused: do not try again
-    if entry.is_file():
-        model = _read(entry)
-        if model is not None:
-            log.debug("model cache: loaded %s (physics only) from %s", path, entry)
-            return model
+    model = _read(entry, path)
+    if model is not None:
+        log.debug("model cache: loaded %s (physics only) from %s", path, entry)
+        return model
     full = load_or_compile(path, compile_fn, variant=variant)
     if refused.is_file():
         return full
-    data = modeltrim.physics_only(full)
     try:
-        if data is None:
-            _write_bytes(refused, b"")
+        spec = mujoco.MjSpec.from_file(str(path))
+    except (ValueError, OSError, mujoco.FatalError) as exc:
+        log.debug("model cache: cannot read %s as a spec (%s)", path, exc)
+        return full
+    trimmed = modeltrim.physics_only(spec, full)
+    try:
+        if trimmed is None:
+            _write_with(refused, lambda tmp: Path(tmp).write_bytes(b""))
             return full
-        _write_bytes(entry, data)
+        _write(entry, trimmed)
     except OSError as exc:
         log.debug("model cache: cannot write %s: %s", entry, exc)
-        return full
-    return _read(entry) or full
+        return full if trimmed is None else trimmed
+    return trimmed
 
 
 @dataclass(frozen=True)
@@ -239,10 +293,8 @@ def clear() -> CacheInfo:
     if before.folder.is_dir():
         for f in before.folder.glob(f"*{ENTRY_SUFFIX}"):
             f.unlink(missing_ok=True)
-        for f in before.folder.glob(f"*{REFUSED_SUFFIX}"):
-            f.unlink(missing_ok=True)
-        for f in before.folder.glob(".*.partial"):
-            f.unlink(missing_ok=True)
-        for f in before.folder.glob(f"{MEMO_FOLDER}/*"):
-            f.unlink(missing_ok=True)
+        # digests/*.txt: the folder-digest memo of cache format 1, no longer written
+        for pattern in (f"*{DIGEST_SUFFIX}", f"*{REFUSED_SUFFIX}", ".*.partial", "digests/*.txt"):
+            for f in before.folder.glob(pattern):
+                f.unlink(missing_ok=True)
     return before

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..units import JOINT_NAMES, ArmUnits
+from ..validation import check_input_file
 from .cache import load_or_compile
 
 log = logging.getLogger(__name__)
@@ -58,9 +59,9 @@ def load_model(
     compiled from the file as it is).
 
     ``physics_only=True``: for runs that never draw and never cast rays (``so101sim run
-    --headless``): the model without its mesh triangles and their bounding-volume trees
-    (:mod:`so101sim.model.trim`), the same physics bit for bit in about a fifth of the memory
-    and load time. Do not cast rays at it (so101sim's renderers draw the full model of the same
+    --headless``): the model without its visual geoms, its collision meshes as their convex
+    hulls (:mod:`so101sim.model.trim`), the same physics in about a quarter of the memory and
+    load time. Do not cast rays at it (so101sim's renderers draw the full model of the same
     file instead). When it cannot be made (the disk cache is off, or the model's physics may read
     what is dropped: flexes, signed-distance fields, plugins, rangefinders), this is the full
     model.
@@ -71,18 +72,12 @@ def load_model(
     """
     from .arm import apply_profile, load_profile, profile_key
 
-    p = Path(path).expanduser() if path is not None else scene_path()
     prof = load_profile(arm)  # type: ignore[arg-type]
-    if p.exists() and not p.is_file():
-        raise ModelError(
-            f"model file {str(p)!r} is not a regular file; expected an MJCF file such as the "
-            f"shipped {str(scene_path())!r}"
-        )
-    if not p.is_file():
-        raise ModelError(
-            f"model file {str(p)!r} does not exist; expected an MJCF file such as the shipped "
-            f"{str(scene_path())!r}"
-        )
+    if path is None:
+        p = scene_path()
+    else:  # empty, too long, missing, a folder, a device: one line saying so, no OSError
+        expected = f"an MJCF file such as the shipped {str(scene_path())!r}"
+        p = check_input_file(path, "model file", expected=expected, error=ModelError)
     p = p.resolve()
     variant = profile_key(prof)  # "" for the file's own actuators (official)
     key = (str(p), p.stat().st_mtime_ns, physics_only, variant)

@@ -1,10 +1,13 @@
 """The motion layer: segments (moves and holds) run on a simulation, and motion files (TOML).
 
 May import: ``so101sim.sim``, ``so101sim.kinematics``, ``so101sim.model`` and the base modules.
-Modules: :mod:`.segments` (``Move``, ``Hold``, ``run_motion``), :mod:`.file` (``load_motion``),
+Modules: :mod:`.moves` (``Move``, ``Hold``: a motion as data), :mod:`.plan` (a motion planned
+once: ``plan_segments``, ``run_plan``), :mod:`.segments` (``run_motion`` and the ``(m, d)``
+functions), :mod:`.file` (``load_motion``),
 :mod:`.lines` (reading a file, line numbers in its errors), :mod:`.tip` (straight tip moves).
 """
 
+from .plan import PlannedMotion, PlannedSegment, plan_segments, run_plan
 from .segments import (
     LAB_MOTION,
     PROFILES,
@@ -32,6 +35,8 @@ __all__ = [
     "STARTING_POSE",
     "Hold",
     "Move",
+    "PlannedMotion",
+    "PlannedSegment",
     "Profile",
     "RunResult",
     "Segment",
@@ -41,7 +46,9 @@ __all__ = [
     "hold",
     "move",
     "plan_move",
+    "plan_segments",
     "run_motion",
+    "run_plan",
     "run_segments",
     "steps_for",
     "validate_segments",

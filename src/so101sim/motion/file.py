@@ -57,6 +57,7 @@ the line scan and the tip moves are in the two modules named above.)
 
 from __future__ import annotations
 
+import os
 import reprlib
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
@@ -134,6 +135,11 @@ class MotionFile:
     lines: tuple[int, ...]  # the line each step starts on
     poses: dict[str, dict[str, float]] = field(default_factory=dict)  # the file's own poses
     description: str = ""
+    # the tip moves as the loader planned them (step index -> (start, targets), arm units),
+    # on ``model``: a run on that model uses them (motion.plan.plan_segments(known=...))
+    tip_plans: dict[int, tuple[np.ndarray, np.ndarray]] = field(
+        default_factory=dict, repr=False, compare=False
+    )
 
 
 # ---------------------------------------------------------------------------- the loader
@@ -184,6 +190,7 @@ class _Loader:
         self.path = path
         self.units = units
         self.planner = TipPlanner(model)  # tip moves, planned as the run will plan them
+        self.tip_plans: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.loc = loc
         self.radians = False  # body joints given in radians (units = "rad")
         lo, hi = units.limits
@@ -230,6 +237,7 @@ class _Loader:
             lines=tuple(line for _, line in steps),
             poses=poses,
             description=description,
+            tip_plans=dict(self.tip_plans),
         )
 
     def description(self, value: Any) -> str:
@@ -349,7 +357,10 @@ class _Loader:
         d = self.duration(raw["duration"], (*where, "duration"), what, MAX_MOVE_DURATION_S)
         profile = self.profile(raw.get("profile", self.default_profile), (*where, "profile"))
         if kind == "move" and is_tip_move(raw["move"]):
-            return self.tip_move(raw["move"], where, d, profile, name or "to_tip", current)
+            move, end = self.tip_move(raw["move"], where, d, profile, name or "to_tip", current)
+            if self.planner.last is not None:
+                self.tip_plans[i] = self.planner.last
+            return move, end
         target, label = self.target(kind, raw[kind], current, (*where, kind))
         pose = self.units.array_to_pose(target)
         return Move(pose, d, profile=profile, phase=name or label), target
@@ -449,6 +460,10 @@ def load_motion(
             folder, a device such as ``/dev/zero``, a pipe), is larger than 1 MiB, is not
             UTF-8, is not valid TOML, or says something invalid.
     """
+    if not isinstance(path, str | os.PathLike) or not str(path).strip():
+        raise MotionFileError(
+            repr(path), 0, "the motion file path is empty; expected a TOML motion file (text)"
+        )
     p = Path(path)
     try:
         text = read_text_limited(p, MAX_FILE_BYTES)

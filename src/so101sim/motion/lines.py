@@ -1,30 +1,29 @@
 """The text of a motion file: reading it with bounds, its TOML, and where each key of it is.
 
-:mod:`tomllib` reports no line numbers for values, so :class:`KeyLines` scans the TOML text
-itself, in one pass that is linear in the text's length, and maps every key path it finds to
-the line where it starts: table headers (``[poses]``, ``[poses.x]``, the n-th ``[[steps]]``,
-``[steps.move]`` inside the last of them), ``key = value`` lines (dotted keys too), the keys of
-inline tables and the elements of arrays (``steps = [{ hold = 1 }, ...]`` gives
-``("steps", 1, "hold")``), on one line or several. Strings, multi-line strings and comments are
-skipped, so a ``[[steps]]`` written inside a string is not counted. Lines are counted as TOML
-counts them: only ``\\n`` (or ``\\r\\n``) ends a line; U+2028, U+0085 and the like do not.
+:mod:`tomllib` reads the data but reports no line numbers for values, so :class:`KeyLines`
+finds them: one regular expression splits the text into TOML's tokens (the four kinds of
+string, comments, brackets, ``=``, ``,``, bare words, newlines), and one loop over them maps
+every key path to the line where it starts: table headers (``[poses.x]``, the n-th
+``[[steps]]``, ``[steps.move]`` inside the last of them), ``key = value`` lines (dotted keys
+too), the keys of inline tables and the elements of arrays (``steps = [{ hold = 1 }, ...]``
+gives ``("steps", 1, "hold")``). A ``[[steps]]`` inside a string or a comment is part of one
+token, not a table. Lines are counted as TOML counts them: only ``\\n`` ends a line; U+2028,
+U+0085 and the like do not. Where a path is not found, the line of the nearest enclosing key or
+table is used.
 
-The same pass bounds what :mod:`tomllib` would otherwise recurse on or choke on: data nested
-more than :data:`MAX_NESTING` levels deep (arrays, inline tables, tables and dotted keys
-together; tomllib raised RecursionError from about 330 levels) and bare values (numbers, dates)
-longer than :data:`MAX_TOKEN` characters (Python refuses to convert integers of more than 4300
-digits, and error messages quote the value). :attr:`KeyLines.problem` says where.
-:func:`load_toml` runs the scan, then tomllib; :func:`read_text_limited` reads a file with
-bounds (also the leader's calibration, :mod:`so101sim.robot.calibration`).
-
-The scanner follows TOML's grammar loosely and never raises: where the text is not valid TOML
-it skips to the next line (tomllib reports the syntax error). Where a path is not found, the
-line of the nearest enclosing key or table is used.
+The same pass runs before :mod:`tomllib` and bounds what it would otherwise recurse on or choke
+on: data nested more than :data:`MAX_NESTING` levels deep (arrays, inline tables, tables and
+dotted keys together; tomllib raised RecursionError from about 330 levels) and bare values
+(numbers, dates) longer than :data:`MAX_TOKEN` characters (Python refuses to convert integers
+of more than 4300 digits). It never raises on text that is not TOML: tomllib reports that.
+:func:`read_text_limited` reads a file with bounds (also the leader's calibration,
+:mod:`so101sim.robot.calibration`).
 """
 
 from __future__ import annotations
 
 import bisect
+import contextlib
 import os
 import re
 import stat
@@ -91,44 +90,38 @@ def _read(p: Path, max_bytes: int) -> bytes:
     return data
 
 
-# ---------------------------------------------------------------------------- the scanner
-_WS = re.compile(r"[ \t\r]*")
-_WS_NL = re.compile(r"(?:[ \t\r\n]|#[^\n]*)*")  # inside arrays: newlines and comments too
-_TO_EOL = re.compile(r"[ \t\r]*(?:#[^\n]*)?(?:\n|$)")
-_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
-_BASIC = re.compile(r'"(?:[^"\\\n]|\\.)*"')
-_LITERAL = re.compile(r"'[^'\n]*'")
-_ML_BASIC = re.compile(r'"""(?:[^"\\]|\\[\s\S]|"(?!""))*"""(?:"{1,2})?')
-_ML_LITERAL = re.compile(r"'''(?:[^']|'(?!''))*'''(?:'{1,2})?")
-_DOT = re.compile(r"[ \t]*\.[ \t]*")
-_EQUALS = re.compile(r"[ \t]*=")
-_BARE_VALUE = r"\d{4}-\d\d-\d\d[ Tt]\d[0-9:.+\-Zz]*|[A-Za-z0-9_+\-.:]+"
-_SCALAR = re.compile(rf"{_BASIC.pattern}|{_LITERAL.pattern}|(?P<bare>{_BARE_VALUE})")
-_SEPARATOR = re.compile(r"(?:[ \t\r\n]|#[^\n]*)*(,?)(?:[ \t\r\n]|#[^\n]*)*")
-_CLOSE = {"[": "]", "{": "}"}
+# ---------------------------------------------------------------------------- key lines
+_TOKENS = re.compile(
+    r'(?P<string>"""(?:[^"\\]|\\[\s\S]|"(?!""))*"""(?:"{1,2})?'  # multi-line basic
+    r"|'''(?:[^']|'(?!''))*'''(?:'{1,2})?"  # multi-line literal
+    r'|"(?:[^"\\\n]|\\.)*"'  # basic
+    r"|'[^'\n]*')"  # literal
+    r"|(?P<skip>[ \t\r]+|#[^\n]*)"
+    r"|(?P<newline>\n)"
+    r"|(?P<bare>[A-Za-z0-9_+\-.:]+)"
+    r"|(?P<mark>\[\[|\]\]|[\[\]{}=,.])"
+    r"|(?P<other>.)"
+)
 
 
 class _Stop(Exception):
-    """The text is not TOML the scanner follows here: go on at the next line."""
+    """The data nests too deep or holds a bare value too long: :attr:`KeyLines.problem`."""
 
 
 class KeyLines:
-    """Maps key paths (``("steps", 2, "duration")``) to 1-based line numbers, scanning the text
-    once. ``problem`` is ``(line, reason)`` where the data nests more than ``max_nesting``
-    levels deep or a bare value is longer than :data:`MAX_TOKEN` characters (the scan stops
-    there), else None."""
+    """Maps key paths (``("steps", 2, "duration")``) to 1-based line numbers, from one pass over
+    the text's tokens. ``problem`` is ``(line, reason)`` where the data nests more than
+    ``max_nesting`` levels deep or a bare value is longer than :data:`MAX_TOKEN` characters
+    (the pass stops there), else None."""
 
     def __init__(self, text: str, *, max_nesting: int = MAX_NESTING) -> None:
-        self.text = text
         self.max_nesting = max_nesting
         self.problem: tuple[int, str] | None = None
         self._newlines = [m.start() for m in re.finditer("\n", text)]
         self._starts: dict[tuple[Any, ...], int] = {}  # path -> position of its first mention
-        self._arrays: dict[tuple[Any, ...], int] = {}  # array of tables -> its last index
-        self._pos = 0
-        self._scan()
+        with contextlib.suppress(_Stop):
+            self._walk(text)
 
-    # ------------------------------------------------------------------------ lookups
     def line_at(self, pos: int) -> int:
         """The 1-based line of character ``pos`` (only ``\\n`` ends a line)."""
         return bisect.bisect_left(self._newlines, pos) + 1
@@ -140,196 +133,106 @@ class KeyLines:
                 return self.line_at(self._starts[path[:n]])
         return 1
 
-    # ------------------------------------------------------------------------ statements
-    def _scan(self) -> None:
-        table: tuple[Any, ...] = ()
-        n = len(self.text)
-        while self.problem is None:
-            self._pos = _WS_NL.match(self.text, self._pos).end()
-            if self._pos >= n:
-                return
-            try:
-                if self.text[self._pos] == "[":
-                    table = self._header()
-                else:
-                    self._key_value(table)
-                self._end_of_line()
-            except _Stop:
-                end = self.text.find("\n", self._pos)
-                self._pos = n if end < 0 else end + 1
-
-    def _header(self) -> tuple[Any, ...]:
-        """``[a.b]`` or ``[[a.b]]``: the table's path (with the index of every enclosing array
-        of tables, and its own for ``[[...]]``)."""
-        double = self.text.startswith("[[", self._pos)
-        start = self._pos
-        self._pos += 2 if double else 1
-        self._pos = _WS.match(self.text, self._pos).end()
-        parts = self._key()
-        self._pos = _WS.match(self.text, self._pos).end()
-        close = "]]" if double else "]"
-        if not self.text.startswith(close, self._pos):
-            raise _Stop
-        self._pos += len(close)
-        path: tuple[Any, ...] = ()
-        for part in parts[:-1] if double else parts:
-            path = (*path, part)
-            if path in self._arrays:
-                path = (*path, self._arrays[path])
-        if double:
-            path = (*path, parts[-1])
-            index = self._arrays.get(path, -1) + 1
-            self._arrays[path] = index
-            path = (*path, index)
-        self._found(path, start)
-        return path
-
-    def _key_value(self, table: tuple[Any, ...]) -> None:
-        start = self._pos
-        path = (*table, *self._key())
-        self._found(path, start)
-        m = _EQUALS.match(self.text, self._pos)
-        if not m:
-            raise _Stop
-        self._pos = _WS.match(self.text, m.end()).end()
-        self._value(path)
-
-    def _end_of_line(self) -> None:
-        m = _TO_EOL.match(self.text, self._pos)
-        if not m:
-            raise _Stop
-        self._pos = m.end()
-
-    # ------------------------------------------------------------------------ pieces
     def _found(self, path: tuple[Any, ...], pos: int) -> None:
-        if len(path) > self.max_nesting and self.problem is None:
-            self.problem = (
-                self.line_at(pos),
-                f"the data nests {len(path)} levels deep here; expected at most "
-                f"{self.max_nesting} (tables, arrays and dotted keys together)",
-            )
-            raise _Stop
+        if len(path) > self.max_nesting:
+            reason = f"the data nests {len(path)} levels deep here; expected at most "
+            self._stop(pos, f"{reason}{self.max_nesting} (tables, arrays and dotted keys together)")
         for n in range(1, len(path) + 1):  # a table named in a header or dotted key starts here
             self._starts.setdefault(path[:n], pos)
 
-    def _key(self) -> tuple[str, ...]:
-        """A key, dotted or not: its parts, unquoted."""
-        parts = [self._key_part()]
-        while True:
-            m = _DOT.match(self.text, self._pos)
-            if not m:
-                return tuple(parts)
-            self._pos = m.end()
-            parts.append(self._key_part())
-            if len(parts) > self.max_nesting:
-                self._found(tuple(parts), self._pos)
-
-    def _key_part(self) -> str:
-        for pattern in (_BARE_KEY, _BASIC, _LITERAL):
-            m = pattern.match(self.text, self._pos)
-            if m:
-                self._pos = m.end()
-                raw = m.group()
-                if raw[0] == '"':
-                    return _unescape(raw)
-                return raw[1:-1] if raw[0] == "'" else raw
+    def _stop(self, pos: int, reason: str) -> None:
+        self.problem = (self.line_at(pos), reason)
         raise _Stop
 
-    def _value(self, path: tuple[Any, ...]) -> None:
-        """A value assigned to ``path``; arrays and inline tables are followed with a stack
-        (no recursion), their elements and keys recorded."""
-        stack: list[tuple[str, tuple[Any, ...], int]] = []  # (bracket, path, elements so far)
-        while True:
-            self._pos = (_WS_NL if stack else _WS).match(self.text, self._pos).end()
-            bracket = self.text[self._pos : self._pos + 1]
-            if bracket in _CLOSE:
-                stack.append((bracket, path, 0))
-                self._pos += 1
-                if not self._closes_at_once(stack):
-                    path = self._next_in(stack)
-                    continue
-            else:
-                self._scalar()
-            if not stack or self._after_value(stack):
-                return
-            path = self._next_in(stack)
-
-    def _closes_at_once(self, stack: list[tuple[str, tuple[Any, ...], int]]) -> bool:
-        """Just after an opening bracket: True if the container is empty (it is popped)."""
-        bracket, path, _ = stack[-1]
-        if len(path) >= self.max_nesting:
-            self._found((*path, 0), self._pos - 1)  # too deep: stops here
-        self._pos = _WS_NL.match(self.text, self._pos).end()
-        if self.text.startswith(_CLOSE[bracket], self._pos):
-            self._pos += 1
-            stack.pop()
-            return True
-        return False
-
-    def _next_in(self, stack: list[tuple[str, tuple[Any, ...], int]]) -> tuple[Any, ...]:
-        """At the start of the next element (array) or key (inline table) of the innermost
-        container: its path, recorded."""
-        bracket, path, count = stack[-1]
-        start = self._pos
-        if bracket == "[":  # as deep as the first element, checked by _closes_at_once
-            element: tuple[Any, ...] = (*path, count)
-            self._starts.setdefault(element, start)
-            return element
-        element = (*path, *self._key())
-        self._found(element, start)
-        m = _EQUALS.match(self.text, self._pos)
-        if not m:
-            raise _Stop
-        self._pos = m.end()
-        return element
-
-    def _after_value(self, stack: list[tuple[str, tuple[Any, ...], int]]) -> bool:
-        """After a value in a container: consume ``,`` and closing brackets. True once the
-        outermost container has closed: the ``key = value`` is complete. Stops just before
-        the next element or key otherwise."""
-        while stack:
-            m = _SEPARATOR.match(self.text, self._pos)
-            self._pos = m.end()
-            bracket, path, count = stack[-1]
-            if self.text.startswith(_CLOSE[bracket], self._pos):  # maybe after a last comma
-                self._pos += 1
-                stack.pop()
-            elif m.group(1):
-                stack[-1] = (bracket, path, count + 1)
-                return False
-            else:
-                raise _Stop
-        return True
-
-    def _scalar(self) -> None:
-        """A string (any of TOML's four kinds) or a bare value (number, boolean, date)."""
-        text, pos = self.text, self._pos
-        pattern = _SCALAR
-        if text.startswith('"""', pos) or text.startswith("'''", pos):
-            pattern = _ML_BASIC if text[pos] == '"' else _ML_LITERAL
-        m = pattern.match(text, pos)
-        if not m:
-            if pattern is not _SCALAR:  # never closed: the rest of the text is that string
-                self._pos = len(text)
-            raise _Stop
-        if m.lastgroup == "bare" and m.end() - pos > MAX_TOKEN:
-            self.problem = (
-                self.line_at(pos),
-                f"a value {m.end() - pos} characters long; expected a number, true/false or "
-                f"a date of at most {MAX_TOKEN} characters",
-            )
-            raise _Stop
-        self._pos = m.end()
+    def _walk(self, text: str) -> None:
+        """States: ``line`` (a statement may start), ``key`` (a key's parts, of a header when
+        ``header`` is "[" or "[["), ``value``, ``rest`` (up to the end of the line)."""
+        table: tuple[Any, ...] = ()
+        arrays: dict[tuple[Any, ...], int] = {}  # array of tables -> its last index
+        stack: list[list[Any]] = []  # open brackets of a value: [bracket, path, elements]
+        state, header, key, key_at = "line", "", [], 0
+        value: tuple[Any, ...] = ()  # the path of the value being read
+        element_next = False  # the next token starts an element of the innermost array
+        for m in _TOKENS.finditer(text):
+            kind, token, pos = m.lastgroup, m.group(), m.start()
+            if kind == "skip" or (kind == "newline" and stack):
+                continue
+            if kind == "newline":
+                state = "line"
+            elif state == "line" and token in ("[", "[["):
+                state, header, key, key_at = "key", token, [], pos
+            elif state in ("line", "key"):
+                if state == "line":
+                    state, header, key, key_at = "key", "", [], pos
+                if kind in ("bare", "string"):
+                    key += [p for p in token.split(".") if p] if kind == "bare" else [_key(token)]
+                    if len(key) > self.max_nesting:
+                        self._found(tuple(key), pos)
+                elif token == "=" and not header:
+                    value = (*(stack[-1][1] if stack else table), *key)
+                    self._found(value, key_at)
+                    state = "value"
+                elif token in ("]", "]]") and header:
+                    table = _table_path(key, header == "[[", arrays)
+                    self._found(table, key_at)
+                    state = "rest"
+                elif token == "}" and stack:  # an empty inline table
+                    stack.pop()
+                    state = "value" if stack else "rest"
+            elif state == "value":
+                for mark in token if token in ("[[", "]]") else (token,):
+                    if element_next and mark not in ("]", ","):
+                        value = (*stack[-1][1], stack[-1][2])
+                        self._found(value, pos)
+                        element_next = False
+                    if mark in ("[", "{"):
+                        if len(value) >= self.max_nesting and mark == "[":
+                            self._found((*value, 0), pos)  # too deep: stops here
+                        stack.append([mark, value, 0])
+                        element_next = mark == "["
+                        if mark == "{":
+                            state, header, key, key_at = "key", "", [], pos
+                    elif mark in ("]", "}") and stack:
+                        stack.pop()
+                        element_next = False
+                    elif mark == "," and stack:
+                        stack[-1][2] += 1
+                        element_next = stack[-1][0] == "["
+                        if stack[-1][0] == "{":
+                            state, header, key, key_at = "key", "", [], pos
+                    elif kind == "bare" and len(token) > MAX_TOKEN:
+                        self._stop(
+                            pos,
+                            f"a value {len(token)} characters long; expected a "
+                            f"number, true/false or a date of at most {MAX_TOKEN} characters",
+                        )
+                    if not stack and state == "value":
+                        state = "rest"
 
 
-def _unescape(quoted: str) -> str:
-    """A basic string's value (``"a\\u0041"`` -> ``aA``), as tomllib reads it."""
-    if "\\" not in quoted:
+def _key(quoted: str) -> str:
+    """A quoted key's value (``"a\\u0041"`` -> ``aA``), as tomllib reads it."""
+    if quoted[0] == "'" or "\\" not in quoted:
         return quoted[1:-1]
     try:
         return str(tomllib.loads(f"k = {quoted}")["k"])
     except tomllib.TOMLDecodeError:
         return quoted[1:-1]
+
+
+def _table_path(parts: list[str], double: bool, arrays: dict[tuple[Any, ...], int]) -> tuple:
+    """The path of ``[a.b]`` (``double``: ``[[a.b]]``), with the index of every enclosing array
+    of tables, and its own for ``[[...]]``."""
+    path: tuple[Any, ...] = ()
+    for part in parts[:-1] if double else parts:
+        path = (*path, part)
+        if path in arrays:
+            path = (*path, arrays[path])
+    if double and parts:
+        path = (*path, parts[-1])
+        arrays[path] = arrays.get(path, -1) + 1
+        path = (*path, arrays[path])
+    return path
 
 
 # ---------------------------------------------------------------------------- TOML

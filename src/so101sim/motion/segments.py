@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -23,8 +22,10 @@ from ..errors import DurationError
 from ..model.load import arm_units
 from ..sim.profiles import PROFILES, Profile, get_profile, steps_for
 from ..sim.simulation import Observer, SegmentResult, Simulation
-from ..units import STARTING_POSE, ZERO_POSE, Pose
+from ..units import STARTING_POSE, Pose
 from ..validation import MAX_DURATION_S, check_duration
+from .moves import LAB_MOTION, Hold, Move, RunResult, Segment
+from .plan import plan_segments, run_plan
 
 log = logging.getLogger(__name__)
 
@@ -76,71 +77,6 @@ def hold(
 
 
 # ---------------------------------------------------------------------------- sequences
-@dataclass(frozen=True)
-class Move:
-    """Move to ``target`` (a pose) over ``duration`` seconds with ``profile``; or, with
-    ``tip`` = (x, y, z) metres and no target, move the gripper's tip there (optional tool
-    ``pitch``/``roll`` in degrees) along a straight line (``path="line"``) or in joint space
-    (``path="joint"``): see :meth:`Simulation.move_to` and :meth:`Move.to_tip`."""
-
-    target: Pose | None
-    duration: float
-    profile: str | Profile = "linear"
-    phase: str = "move"
-    tip: tuple[float, float, float] | None = None
-    pitch: float | None = None
-    roll: float | None = None
-    path: str = "line"
-
-    @classmethod
-    def to_tip(
-        cls,
-        tip: Sequence[float],
-        duration: float,
-        *,
-        pitch: float | None = None,
-        roll: float | None = None,
-        path: str = "line",
-        profile: str | Profile = "linear",
-        phase: str = "move",
-    ) -> Move:
-        """A move of the tip to ``tip`` (metres, base frame)."""
-        return cls(None, duration, profile, phase, tuple(tip), pitch, roll, path)  # type: ignore[arg-type]
-
-
-@dataclass(frozen=True)
-class Hold:
-    """Hold the last target for ``duration`` seconds."""
-
-    duration: float
-    phase: str = "hold"
-
-
-Segment = Move | Hold
-"""One part of a motion: a :class:`Move` or a :class:`Hold` (each runs many physics steps)."""
-
-
-@dataclass(frozen=True)
-class RunResult:
-    """The segments of a motion, in order. ``completed`` is False if it was cut short."""
-
-    segments: list[SegmentResult]
-
-    @property
-    def completed(self) -> bool:
-        return all(s.completed for s in self.segments)
-
-    @property
-    def end_time(self) -> float:
-        return self.segments[-1].end_time if self.segments else 0.0
-
-
-LAB_MOTION: tuple[Segment, ...] = (
-    Move(ZERO_POSE, 2.0, phase="to_zero"),
-    Hold(2.0, phase="hold"),
-    Move(STARTING_POSE, 2.0, phase="return"),
-)
-"""The lab's motion: from the rest pose to all zeros in 2 s, hold 2 s, back in 2 s."""
 
 
 def validate_segments(
@@ -186,26 +122,10 @@ def commanded_path(
     """What a motion commands, step by step, without simulating it: ``(times, targets)``
     with ``targets`` (n, 6) in arm units, one row per physics step (the target applied during
     the step that ends at ``times[i]``). Planning depends only on the commanded targets, so
-    this is exactly what :func:`run_segments` would command from the rest pose ``start``.
+    this is exactly what :func:`run_segments` would command from the rest pose ``start``
+    (:meth:`so101sim.motion.plan.PlannedMotion.path` of the same plan).
     """
-    sim = Simulation(model, initial_pose=start)  # scratch: planning only, never stepped
-    validate_segments(model, segments, start=sim.commanded_array())
-    rows: list[np.ndarray] = []
-    for seg in segments:
-        if isinstance(seg, Hold):
-            n = steps_for(seg.duration, sim.timestep)
-            targets = np.repeat(sim.commanded_array()[None], n, axis=0)
-        elif seg.tip is not None:
-            _, targets = sim.plan_tip_move(
-                seg.tip, seg.duration, pitch=seg.pitch, roll=seg.roll, path=seg.path,
-                profile=seg.profile,
-            )  # fmt: skip
-        else:
-            _, targets = sim.plan_move(seg.target, seg.duration, profile=seg.profile)
-        sim.command_array(targets[-1], check=False)
-        rows.append(targets)
-    path = np.vstack(rows) if rows else np.zeros((0, 6))
-    return sim.timestep * np.arange(1, len(path) + 1), path
+    return plan_segments(model, segments, start).path()
 
 
 def run_segments(
@@ -218,35 +138,11 @@ def run_segments(
     trace: bool | None = None,
 ) -> RunResult:
     """Run a sequence of moves and holds on ``sim``; stops early if an observer (a closed
-    viewer) says so. Every segment is validated before the first one runs. ``trace``: keep
-    each segment's per-step arrays (None: for segments up to two minutes)."""
-    validate_segments(sim.model, segments, clip=clip, start=sim.commanded_array())
-    results: list[SegmentResult] = []
-    for seg in segments:
-        if isinstance(seg, Move):
-            r = sim.move_to(
-                seg.target,
-                seg.duration,
-                tip=seg.tip,
-                pitch=seg.pitch,
-                roll=seg.roll,
-                path=seg.path,
-                profile=seg.profile,
-                viewer=viewer,
-                observers=observers,
-                clip=clip,
-                phase=seg.phase,
-                trace=trace,
-            )
-        else:
-            r = sim.hold(
-                seg.duration, viewer=viewer, observers=observers, phase=seg.phase, trace=trace
-            )
-        results.append(r)
-        if not r.completed:
-            log.info("run stopped during %s at t = %.3f s", r.phase, r.end_time)
-            break
-    return RunResult(results)
+    viewer) says so. The motion is planned once, whole (every segment checked), before the
+    first segment runs (:func:`so101sim.motion.plan.plan_segments`). ``trace``: keep each
+    segment's per-step arrays (None: for segments up to two minutes)."""
+    plan = plan_segments(sim.model, segments, sim.commanded_array(), clip=clip)
+    return run_plan(sim, plan, viewer=viewer, observers=observers, trace=trace)
 
 
 def run_motion(

@@ -139,6 +139,7 @@ class TipPlanner:
     def __init__(self, model: mujoco.MjModel | None = None) -> None:
         self._model = model
         self._sim: Simulation | None = None
+        self.last: tuple[np.ndarray, np.ndarray] | None = None  # the last move planned
 
     def end(self, move: Move, current: np.ndarray) -> np.ndarray:
         """The target (arm units) a tip move from ``current`` ends on.
@@ -147,10 +148,20 @@ class TipPlanner:
             UnreachableError: the tip, or a point of its line, is out of reach.
             SettingError: a profile a straight line cannot follow (``limited``).
         """
+        return self.plan(move, current)[1][-1].copy()
+
+    def plan(self, move: Move, current: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The tip move from ``current`` planned in full: ``(start, targets)`` in arm units, as
+        the run will command them (``start`` is ``current`` as the run reads it back), and
+        kept as :attr:`last` (the loader hands it to the run: a line is solved once).
+
+        Raises:
+            UnreachableError, SettingError: as :meth:`end`.
+        """
         if self._sim is None:
             self._sim = Simulation(self._model or load_model(), initial_pose=None)
         self._sim.command_array(current, check=False)
-        _, targets = self._sim.plan_tip_move(
+        start, targets = self._sim.plan_tip_move(
             move.tip,  # type: ignore[arg-type]
             move.duration,
             pitch=move.pitch,
@@ -158,7 +169,8 @@ class TipPlanner:
             path=move.path,
             profile=move.profile,
         )
-        return targets[-1].copy()
+        self.last = (start, targets)
+        return start, targets
 
 
 __all__ = [

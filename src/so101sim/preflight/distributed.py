@@ -10,6 +10,7 @@ merged result is the same as the local run's, variant for variant.
 from __future__ import annotations
 
 import importlib
+import socket
 from collections.abc import Sequence
 from types import ModuleType
 
@@ -21,6 +22,9 @@ from .rollout import VariantOutcome
 RAY_HINT = 'pip install "so101sim[ray]"'
 DEFAULT_CHUNK = 64
 """Variants per Ray task: about two seconds of the lab motion on one core."""
+CONNECT_TIMEOUT_S = 10.0
+"""The longest wait to reach a Ray cluster's address before giving up (wall seconds): Ray
+itself retries an address that does not answer for minutes, printing time-outs."""
 
 
 def import_ray() -> ModuleType:
@@ -30,6 +34,31 @@ def import_ray() -> ModuleType:
     except ImportError:
         raise SettingError(
             f"--ray needs Ray, which is not installed; install it with: {RAY_HINT}"
+        ) from None
+
+
+def probe_address(address: str, timeout: float = CONNECT_TIMEOUT_S) -> None:
+    """Raise SettingError unless something answers at ``address`` (``host:port`` or
+    ``ray://host:port``) within ``timeout`` seconds; "auto" and "local" are left to Ray (it
+    finds, or starts, a cluster on this machine at once)."""
+    if address in ("auto", "local"):
+        return
+    expected = (
+        "auto (a cluster started here with `ray start --head`), local (start one), or a "
+        "cluster's address host:port or ray://host:port"
+    )
+    hostport = address.removeprefix("ray://")
+    host, _, port = hostport.rpartition(":")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise SettingError(f"--ray {address!r} is not an address; expected {expected}")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout):
+            pass
+    except OSError as exc:
+        reason = "no answer" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
+        raise SettingError(
+            f"--ray {address}: no Ray cluster reached at {host}:{port} within {timeout:g} s "
+            f"({reason}); expected {expected}"
         ) from None
 
 
@@ -55,9 +84,14 @@ def run_on_ray(
 ) -> list[VariantOutcome]:
     """Run ``job`` on Ray: ``address`` "auto" (a running cluster), "local" (start one here),
     an address such as ``ray://host:10001``, or None (Ray already initialised by the caller).
+
+    Raises:
+        SettingError: Ray is not installed, or no cluster answers at ``address`` (within
+            :data:`CONNECT_TIMEOUT_S` for an address given as ``host:port``).
     """
     ray = import_ray()
     if address is not None and not ray.is_initialized():
+        probe_address(address)  # an address that does not answer fails in seconds, not minutes
         try:
             ray.init(address=None if address == "local" else address)
         except (ConnectionError, RuntimeError, ValueError) as exc:
@@ -72,4 +106,13 @@ def run_on_ray(
     return merge(ray.get(refs), job.count)
 
 
-__all__ = ["DEFAULT_CHUNK", "RAY_HINT", "chunks", "import_ray", "merge", "run_on_ray"]
+__all__ = [
+    "CONNECT_TIMEOUT_S",
+    "DEFAULT_CHUNK",
+    "RAY_HINT",
+    "chunks",
+    "import_ray",
+    "merge",
+    "probe_address",
+    "run_on_ray",
+]

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
@@ -22,6 +23,9 @@ from ..motion.segments import Move, Segment, SegmentResult, run_motion
 from ..sim.limited import ShortMove, check_limited_moves
 from ..sim.simulation import Observer, Simulation
 from ..units import JOINT_NAMES, Pose
+
+if TYPE_CHECKING:
+    from .states import StateRecorder
 
 _EPS_T = 1e-9  # s: slack when comparing simulated times with a step's end
 
@@ -136,25 +140,25 @@ def collect(
     model: mujoco.MjModel,
     steps: Sequence[Segment],
     segments: Sequence[SegmentResult],
-    rec: StepRecorder,
+    rec: StepRecorder | StateRecorder,
     saturation_level: float,
     lines: Sequence[int] = (),
     stretched: Sequence[ShortMove] = (),
 ) -> Measurements:
     """The figures of ``segments`` (results of ``steps``, run with ``rec`` observing every
-    step, per-step traces kept)."""
+    step, or a :class:`~so101sim.preflight.states.StateRecorder` deriving the same samples
+    from the recorded states; per-step traces kept)."""
     units = arm_units(model)
     effort = rec.effort(model)
     saturated = _run_lengths(effort > saturation_level) * model.opt.timestep
     ends = np.array([s.end_time for s in segments])
-    step_of_sample = np.searchsorted(ends + _EPS_T, np.array(rec.times))
+    times = np.asarray(rec.times, dtype=float)
+    step_of_sample = np.searchsorted(ends + _EPS_T, times)
     lo, hi = units.limits
     checks = []
     for k, seg in enumerate(segments):
         in_step = step_of_sample == k
-        joints = _joint_checks(
-            seg, lo, hi, effort[in_step], saturated[in_step], np.array(rec.times)[in_step]
-        )
+        joints = _joint_checks(seg, lo, hi, effort[in_step], saturated[in_step], times[in_step])
         contacts = _contacts(model, rec.contacts, seg.start_time, seg.end_time, first=(k == 0))
         checks.append(
             StepCheck(
@@ -222,12 +226,9 @@ def _joint_checks(
 
 def _run_lengths(above: np.ndarray) -> np.ndarray:
     """Per sample and column: how many consecutive samples up to it have been True."""
-    out = np.zeros(above.shape, dtype=int)
-    count = np.zeros(above.shape[1:], dtype=int)
-    for i, row in enumerate(above):
-        count = np.where(row, count + 1, 0)
-        out[i] = count
-    return out
+    idx = np.arange(1, len(above) + 1)[:, None]
+    last_false = np.maximum.accumulate(np.where(above, 0, idx), axis=0)
+    return (idx - last_false).astype(int)
 
 
 def _body_label(m: mujoco.MjModel, body: int) -> str:

@@ -179,6 +179,7 @@ class VariantsReport:
             "passed": self.passed,
             "fraction_passed": self.fraction,
             "failing_by_check": self.failing(),
+            "checks": check_summaries(self),
             "ranges": asdict(self.job.ranges),
             "thresholds": asdict(th),
             "worst": [
@@ -269,23 +270,121 @@ def _params(v: Variant) -> str:
     )
 
 
+CHECKS = (  # (the check's name in the report, the kind of its findings)
+    ("limit margin", "Limit"),
+    ("effort", "Effort"),
+    ("tracking error", "Tracking"),
+    ("contact", "Contact"),
+)
+
+
+def _kind(finding: Any) -> str:
+    return type(finding).__name__.removesuffix("Finding")
+
+
+def _steps(findings: list[Any]) -> str:
+    named = dict.fromkeys(f"step {f.step} ({f.phase})" for f in findings)
+    return ", ".join(named) if named else "the steps named above"
+
+
+def advice(check: str, worst: Worst | None, th: Thresholds) -> str:
+    """What to change in the motion (or the arm) so that ``check`` passes in every variant."""
+    kind = dict(CHECKS)[check]
+    found = [f for f in worst.outcome.failures if _kind(f) == kind] if worst else []
+    where = _steps(found)
+    if check == "limit margin":
+        need = max((th.limit_margin - f.margin for f in found), default=th.limit_margin)
+        offset = float(np.abs(worst.variant.zero_offset_deg).max()) if worst else 0.0
+        return (
+            f"keep the targets of {where} at least {need:.2f}° further inside the joint "
+            f"limits (a variant's zero offset moves the arm by up to {offset:.2f}°), or "
+            "calibrate the arm so its zero offsets are smaller"
+        )
+    if check == "effort":
+        payload = f" (the worst variant carries {worst.variant.payload_kg:.3f} kg)" if worst else ""
+        return (
+            f"a slower move (a longer duration for {where}), a smooth profile (profile = "
+            f'"minimum_jerk" or "limited" on those steps), or less payload{payload}'
+        )
+    if check == "tracking error":
+        return (
+            f"a slower move (a longer duration for {where}) or a smooth profile "
+            '(profile = "minimum_jerk"): the servo lags most where a move starts or stops hard'
+        )
+    return f"move the path of {where} away from what it touches (a waypoint above it)"
+
+
+def check_summaries(report: VariantsReport) -> list[dict[str, Any]]:
+    """Per check: how many variants failed it, the worst variant (its index, figure, whether it
+    failed this check and which others, its parameters, its findings) and what to change."""
+    th, n = report.job.thresholds, len(report.outcomes)
+    worst = {w.check: w for w in report.worst}
+    counts = report.failing()
+    rows = []
+    for check, kind in CHECKS:
+        w = worst.get(check)
+        failed = counts.get(kind, 0)
+        row: dict[str, Any] = {"check": check, "failed": failed, "variants": n}
+        if w is not None:
+            kinds = {_kind(f) for f in w.outcome.failures}
+            row["worst"] = {
+                "variant": w.variant.index,
+                "figure": w.text,
+                "fails_this_check": kind in kinds,
+                "fails": [c for c, k in CHECKS if k in kinds],
+                "parameters": w.variant.to_dict(),
+                "findings": [describe(f, th) for f in w.outcome.failures if _kind(f) == kind],
+            }
+        if failed:
+            row["advice"] = advice(check, w, th)
+        rows.append(row)
+    return rows
+
+
+def thresholds_text(th: Thresholds) -> str:
+    return (
+        f"thresholds: limit margin {th.limit_margin:g}° (body joints), effort above "
+        f"{th.max_effort:.0%} of the force limit for at most {th.max_saturation * 1000:g} ms, "
+        f"tracking error {th.max_tracking_error:g}° (gripper: same figures in 0-100 units)"
+    )
+
+
 def format_variants(report: VariantsReport) -> str:
-    """The report in words: PASS fraction, failures per check, the worst case per check."""
+    """The report in words: PASS fraction, then per check how many variants failed it, the
+    worst variant and its parameters, and what to change; the thresholds used."""
     job, th = report.job, report.job.thresholds
     n = len(report.outcomes)
+    worst = {w.check: w for w in report.worst}
     rows = [
         f"robust preflight: {n} variants of {job.motion_path} (seed {job.seed})",
-        f"PASS {report.passed}/{n} ({report.fraction:.1%})",
+        f"PASS {report.passed}/{n} ({report.fraction:.1%}): "
+        + (
+            "the motion passes on every variant"
+            if report.passed == n
+            else f"{n - report.passed} variant(s) fail at least one check"
+        ),
+        thresholds_text(th),
     ]
-    rows.extend(f"  failing {kind}: {k} variant(s)" for kind, k in report.failing().items())
-    for w in report.worst:
-        verdict = "PASS" if w.outcome.passed else "FAIL"
-        rows.append(f"worst {w.check}: {w.text}, variant {w.variant.index} ({verdict})")
+    for row in check_summaries(report):
+        check, failed = row["check"], row["failed"]
+        verdict = f"FAIL in {failed}/{n} variants" if failed else f"PASS in all {n} variants"
+        w = worst.get(check)
+        if w is None:
+            rows.append(f"{check}: {verdict} (nothing touched)")
+            continue
+        info = row["worst"]
+        if info["fails_this_check"]:
+            state = "fails it"
+        elif info["fails"]:
+            state = f"passes it; fails {', '.join(info['fails'])}"
+        else:
+            state = "passes"
+        rows.append(f"{check}: {verdict}; worst {w.text}, variant {w.variant.index} ({state})")
         rows.append(f"    {_params(w.variant)}")
-        rows.extend(f"    - {describe(f, th)}" for f in w.outcome.failures[:3])
+        rows.extend(f"    - {text}" for text in info["findings"][:3])
+        if "advice" in row:
+            rows.append(f"    what to change: {row['advice']}")
     rows.extend(f"  contact: {c}" for c in report.contacts[:5])
-    if not any(o.touched for o in report.outcomes):
-        rows.append("contacts: none in any variant")
     return "\n".join(rows)
 
 

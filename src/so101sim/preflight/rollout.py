@@ -2,8 +2,8 @@
 measure each as the single check does.
 
 * **Plan once.** :func:`plan_motion` plans what the motion commands at every physics step
-  (:func:`~so101sim.motion.commanded_path`, one segment at a time to know where each step of
-  the motion ends). Every variant gets the same targets, shifted by its zero offsets.
+  (:func:`~so101sim.motion.plan.plan_segments`, which knows where each step of the motion
+  ends). Every variant gets the same targets, shifted by its zero offsets.
 * **Measure from the rollout.** A copy of the model gets sensors at load time (``MjSpec``; the
   vendored files stay unchanged, physics bit for bit the same: sensors only read): one
   ``actuatorfrc`` per arm actuator (the force that acted during the step, as the single check
@@ -12,8 +12,10 @@ measure each as the single check does.
   single check comes out of the rollout's outputs, except the names of the bodies that
   touched: :func:`name_contacts` replays one variant step by step to name them (only the
   variants a report shows).
-* **All cores.** One Python thread per core, each with its own model copy, ``MjData`` and
-  ``Rollout(nthread=0)`` (it steps on the calling thread and lets go of the GIL), takes the
+* **All cores.** One Python thread per core, each with its own model copy and ``MjData``
+  (the stepping kernel, :func:`~so101sim.sim.stepping.step_block`, keeps a
+  ``Rollout(nthread=0)`` per thread: it steps on the calling thread and lets go of the GIL,
+  and checks every block for divergence), takes the
   next variant, writes it into its model
   (:func:`~so101sim.preflight.variants.apply_variant`) and rolls
   it out in blocks of at most :data:`BLOCK` steps, reducing each block at once (memory stays
@@ -29,6 +31,7 @@ for figure, and is kept next to the rollout loop that feeds it.)
 from __future__ import annotations
 
 import copy
+import math
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -36,16 +39,16 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from mujoco import rollout as _rollout
 
 from ..errors import ModelError
-from ..exitgate import mujoco_call
 from ..model.arm import apply_profile, fill_delay_history, load_profile, profile_key
 from ..model.cache import load_or_compile
 from ..model.load import arm_index, arm_units
-from ..motion.segments import Hold, Segment, commanded_path
+from ..motion.plan import plan_segments
+from ..motion.segments import Hold, Segment
 from ..sim.limited import ShortMove, check_limited_moves
 from ..sim.simulation import Simulation
+from ..sim.stepping import Observer, advance, step_block
 from ..units import GRIPPER, JOINT_NAMES, ArmUnits, Pose
 from .judge import Finding, Thresholds, judge
 from .measure import Contact, JointCheck, Measurements, StepCheck
@@ -56,7 +59,10 @@ BLOCK = 4096
 
 CONTACT_SENSOR = "so101sim_preflight_contact"
 _SENSOR_CACHE_KEY = "preflight-sensors-1"
-_CTRL = mujoco.mjtState.mjSTATE_CTRL.value
+_ADVICE = (
+    "Expected stable physics: this variant's perturbations make the arm unstable; narrow the "
+    "variants' ranges"
+)
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
@@ -87,11 +93,8 @@ def plan_motion(
         sim.commanded_array(), steps, sim.timestep, units=sim.units, strict=strict
     )
     units = sim.units
-    rows, pose = [], dict(start)
-    for seg in steps:
-        _, targets = commanded_path(model, [seg], pose)
-        rows.append(targets)
-        pose = units.array_to_pose(targets[-1])
+    planned = plan_segments(model, steps, sim.commanded_array())  # once, every segment checked
+    rows = [np.asarray(p.targets) for p in planned.segments]
     sizes = [len(r) for r in rows]
     return MotionPlan(
         phases=tuple(s.phase for s in steps),
@@ -266,21 +269,21 @@ def _run_lengths(above: np.ndarray, carry: np.ndarray) -> np.ndarray:
 
 
 class Worker:
-    """One thread's model copy, data and rollout runner; runs variants one at a time."""
+    """One thread's model copy and data (the kernel keeps a rollout runner per thread); runs
+    variants one at a time."""
 
     def __init__(self, base: mujoco.MjModel, plan: MotionPlan, thresholds: Thresholds) -> None:
         self.base, self.plan, self.th = base, plan, thresholds
         self.m = copy.copy(base)
         self.d = mujoco.MjData(self.m)
-        self.runner = _rollout.Rollout(nthread=0)
         self.idx = arm_index(base)
         self.units = arm_units(base)
         sid = mujoco.mj_name2id(base, mujoco.mjtObj.mjOBJ_SENSOR, CONTACT_SENSOR)
         self.contact_adr = int(base.sensor_adr[sid])
         self.force_adr = self.contact_adr + 2 + np.arange(len(JOINT_NAMES))
 
-    def _start(self, v: Variant) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The variant's offsets (rad) and its state and warm start at rest at the start."""
+    def _start(self, v: Variant) -> tuple[np.ndarray, np.ndarray]:
+        """Put the variant's arm at rest at the start; its offsets (rad) and its state."""
         m, d, idx = self.m, self.d, self.idx
         offset = np.radians(v.zero_offset_deg)
         apply_variant(m, self.base, v, d)
@@ -293,27 +296,22 @@ class Worker:
         mujoco.mj_forward(m, d)
         s0 = np.empty(mujoco.mj_stateSize(m, _FULL))
         mujoco.mj_getState(m, d, s0, _FULL)
-        return offset, s0, d.qacc_warmstart.copy()
+        return offset, s0
 
-    def blocks(self, offset: np.ndarray, s0: np.ndarray, warm: np.ndarray):
-        """Yield ``(first sample, times, ctrl rad, qpos rad, sensordata)`` block by block,
-        from the state ``s0`` (warm start ``warm``), targets shifted by ``offset`` (rad)."""
+    def blocks(self, offset: np.ndarray):
+        """Yield ``(first sample, times, ctrl rad, qpos rad, sensordata)`` block by block from
+        ``d``'s state (:meth:`_start`), targets shifted by ``offset`` (rad), each block taken by
+        the stepping kernel (:func:`~so101sim.sim.stepping.step_block`: ``mujoco.rollout`` on
+        this thread, the divergence check)."""
         m, d, idx = self.m, self.d, self.idx
         targets, n = self.plan.targets, len(self.plan.targets)
-        nstate = len(s0)
         for a in range(0, n, BLOCK):
             k = min(BLOCK, n - a)
-            ctrl = np.zeros((1, k, m.nu))
-            ctrl[0][:, idx.actuator] = targets[a : a + k] - offset
-            state = np.empty((1, k, nstate))
-            sens = np.empty((1, k, m.nsensordata))
-            with mujoco_call():  # refused once the interpreter exits (exitgate)
-                self.runner.rollout(
-                    [m], [d], s0[None], ctrl, control_spec=_CTRL, skip_checks=True, nstep=k,
-                    initial_warmstart=warm[None], state=state, sensordata=sens,
-                )  # fmt: skip
-            s0, warm = state[0, -1].copy(), d.qacc_warmstart.copy()
-            yield a, state[0, :, 0], ctrl[0][:, idx.actuator], state[0][:, 1 + idx.qpos], sens[0]
+            ctrl = np.zeros((k, m.nu))
+            ctrl[:, idx.actuator] = targets[a : a + k] - offset
+            sens = np.empty((k, m.nsensordata))
+            state = step_block(m, d, ctrl, sensordata=sens, advice=_ADVICE)
+            yield a, state[:, 0], ctrl[:, idx.actuator], state[:, 1 + idx.qpos], sens
 
     def run(self, v: Variant) -> VariantOutcome:
         """Roll ``v`` out, measure and judge it."""
@@ -338,13 +336,13 @@ class Worker:
         start = units.from_radians(plan.start - np.radians(v.zero_offset_deg))
         acc = _Accumulator(len(plan.phases), units)
         last_cmd = start  # the commanded target before the first step
-        offset, s0, warm = self._start(v)  # writes the variant into the model: read it after
+        offset, s0 = self._start(v)  # writes the variant into the model: read it after
         limit = np.abs(self.m.actuator_forcerange[self.idx.actuator, 1])
         force_of = self._forces_of(acc, limit)
         # the single check's recorder also reads the forces and contacts before the first step
         force_of(0, np.array([s0[0]]), self.d.sensordata[None].copy())
         prev_t = float(s0[0])  # the time before the block's first sample
-        for a, t, ctrl, qpos, sens in self.blocks(offset, s0, warm):
+        for a, t, ctrl, qpos, sens in self.blocks(offset):
             cmd, meas = units.from_radians(ctrl), units.from_radians(qpos)
             for j in range(len(plan.phases)):
                 lo = max(plan.bounds[j] - a, 0)
@@ -417,21 +415,40 @@ def run_variants(
     return [r for r in results if r is not None]
 
 
+class _ContactNamer(Observer):
+    """Called after every step: the pairs of bodies in contact, per step of the motion, with
+    when they first touched and their deepest penetration."""
+
+    def __init__(self, step_of_sample: np.ndarray, dt: float) -> None:
+        self.step = step_of_sample
+        self.dt = dt
+        self.i = -1  # samples seen (-1: the call before the first step)
+        self.pairs: dict[tuple[int, int, int], list[float]] = {}
+        self._next = -math.inf
+
+    def next_time(self) -> float:
+        return self._next
+
+    def on_time(self, m: mujoco.MjModel, d: mujoco.MjData) -> bool:
+        if self.i >= 0:  # after mj_step, d.contact holds the contacts of that step
+            for c in d.contact[: d.ncon]:
+                b1, b2 = sorted((int(m.geom_bodyid[c.geom[0]]), int(m.geom_bodyid[c.geom[1]])))
+                seen = self.pairs.setdefault((int(self.step[self.i]), b1, b2), [d.time, 0.0])
+                seen[1] = max(seen[1], -float(c.dist))
+        self.i += 1
+        self._next = d.time + 0.5 * self.dt
+        return True
+
+
 def name_contacts(worker: Worker, v: Variant) -> list[tuple[int, Contact]]:
     """Replay ``v`` one step at a time and name what touched: ``(step of the motion, Contact)``
     per pair of bodies and step, in the order they first touched."""
-    m, d, idx, plan = worker.m, worker.d, worker.idx, worker.plan
-    offset, _, _ = worker._start(v)
-    pairs: dict[tuple[int, int, int], list[float]] = {}
+    m, d, plan = worker.m, worker.d, worker.plan
+    offset, _ = worker._start(v)
     step = np.searchsorted(plan.bounds, np.arange(len(plan.targets)), side="right") - 1
-    for i, row in enumerate(plan.targets):
-        d.ctrl[idx.actuator] = row - offset
-        mujoco.mj_step(m, d)
-        for c in d.contact[: d.ncon]:
-            b1, b2 = sorted((int(m.geom_bodyid[c.geom[0]]), int(m.geom_bodyid[c.geom[1]])))
-            key = (int(step[i]), b1, b2)
-            seen = pairs.setdefault(key, [float(d.time), 0.0])
-            seen[1] = max(seen[1], -float(c.dist))
+    namer = _ContactNamer(step, m.opt.timestep)
+    advance(m, d, plan.targets - offset, [namer], keep_trace=False)  # the stepping kernel
+    pairs = namer.pairs
     label = {b: ("floor" if b == 0 else m.body(b).name) for k in pairs for b in k[1:]}
     return [
         (j + 1, Contact(label[b1], label[b2], t, pen))

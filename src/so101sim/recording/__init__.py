@@ -40,41 +40,15 @@ The modules, one job each:
 - :mod:`.recorder`: :class:`Recorder`, all of the above at once.
 """
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from .._lazy import lazy_names
 
 # Each name is imported from its module on first use (PEP 562), only to keep start-up fast:
 # a headless run that writes nothing (so101sim run --headless) imports .settings and no more.
-_LAZY: dict[str, str] = {
-    "CsvLog": "csvlog",
-    "FREE_CAMERA": "settings",
-    "FrameRenderer": "frames",
-    "MAX_FPS": "settings",
-    "MAX_FRAME_SIZE": "settings",
-    "MAX_PLOT_POINTS": "plot",
-    "PLOT_SUFFIXES": "plot",
-    "QUALITIES": "settings",
-    "QUALITY_CHOICES": "settings",
-    "Recorder": "recorder",
-    "RunLog": "plot",
-    "SHIPPED_MODEL_FILES": "draft",
-    "TraceCollector": "plot",
-    "VIDEO_SUFFIXES": "video",
-    "VideoRecorder": "video",
-    "VideoSettings": "settings",
-    "camera_names": "settings",
-    "check_camera": "settings",
-    "check_output_path": "paths",
-    "csv_columns": "csvlog",
-    "draft_mesh_dir": "draft",
-    "draft_source": "draft",
-    "plot_run": "plot",
-    "render_model": "draft",
-    "resolve_quality": "settings",
-    "video_frames": "video",
-}
-
-if TYPE_CHECKING:  # for type checkers and editors; at run time names load on first use
+# The names are those imported under TYPE_CHECKING (read by so101sim._lazy); the submodules
+# (so101sim.recording.video, ...) are attributes too, imported on first use.
+if TYPE_CHECKING:
     from .csvlog import CsvLog, csv_columns
     from .draft import SHIPPED_MODEL_FILES, draft_mesh_dir, draft_source, render_model
     from .frames import FrameRenderer
@@ -95,62 +69,4 @@ if TYPE_CHECKING:  # for type checkers and editors; at run time names load on fi
     from .video import VIDEO_SUFFIXES, VideoRecorder, video_frames
 
 
-_SUBMODULES = frozenset(
-    [
-        "csvlog",
-        "draft",
-        "encoder",
-        "envelope",
-        "frames",
-        "paths",
-        "plot",
-        "recorder",
-        "settings",
-        "video",
-    ]
-)
-
-
-def __getattr__(name: str) -> Any:
-    if name in _SUBMODULES:  # so101sim.recording.video etc., as when they were imported here
-        return importlib.import_module(f".{name}", __name__)
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value  # later look-ups skip this function
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY) | _SUBMODULES)
-
-
-__all__ = [
-    "FREE_CAMERA",
-    "MAX_FPS",
-    "MAX_FRAME_SIZE",
-    "MAX_PLOT_POINTS",
-    "PLOT_SUFFIXES",
-    "QUALITIES",
-    "QUALITY_CHOICES",
-    "SHIPPED_MODEL_FILES",
-    "VIDEO_SUFFIXES",
-    "CsvLog",
-    "FrameRenderer",
-    "Recorder",
-    "RunLog",
-    "TraceCollector",
-    "VideoRecorder",
-    "VideoSettings",
-    "camera_names",
-    "check_camera",
-    "check_output_path",
-    "csv_columns",
-    "draft_mesh_dir",
-    "draft_source",
-    "plot_run",
-    "render_model",
-    "resolve_quality",
-    "video_frames",
-]
+__getattr__, __dir__ = lazy_names(__name__)

@@ -237,15 +237,15 @@ def _draft_model(model: mujoco.MjModel) -> mujoco.MjModel:
 
 
 def _drawable(model: mujoco.MjModel) -> mujoco.MjModel:
-    """``model``, or for a physics-only model (no mesh triangles) the full model of its file,
+    """``model``, or for a physics-only model (no visual geoms) the full model of its file,
     which has the same bodies and joints."""
     if not is_physics_only(model):
         return model
     source = model_source(model)
     if source is None:
         raise SettingError(
-            "this model was loaded with physics_only=True: its meshes have no triangles to "
-            "draw; load it with so101sim.load_model(path) to draw it"
+            "this model was loaded with physics_only=True: it has no visual geoms to draw;"
+            " load it with so101sim.load_model(path) to draw it"
         )
     return load_model(source)
 

@@ -35,6 +35,18 @@ from ..errors import OutputPathError
 _QUEUE_FRAMES = 4  # frames waiting for the pipe at most,
 _QUEUE_BYTES = 32 * 2**20  # and at most this many bytes of them (but one frame)
 _POLL_S = 0.002  # how often a full queue is looked at again
+_NEVER_RELEASED = threading.Lock()
+_NEVER_RELEASED.acquire()
+
+
+def _pause(seconds: float) -> None:
+    """Wait ``seconds`` of real time, in C (a lock that is never released). Not ``time.sleep``:
+    under ``so101sim record`` a script's ``time.sleep`` moves its simulated clock at once
+    (:mod:`so101sim.lab.simclock`), and waiting here for ffmpeg would move it on with each
+    look at the queue (a busy machine's ffmpeg, behind, made a 6 s script's clock read 208 s)."""
+    _NEVER_RELEASED.acquire(timeout=seconds)
+
+
 _MESSAGES_KEPT = 4000  # characters of ffmpeg's messages kept for an error
 _VERIFY_TIMEOUT_S = 600.0
 
@@ -126,7 +138,7 @@ class FfmpegEncoder:
             raise ValueError(f"frame of shape {frame.shape}, {frame.dtype}; expected {self.size}")
         data = frame.tobytes()
         while self._frames.qsize() >= self._waiting and self.error is None:
-            time.sleep(_POLL_S)  # ffmpeg is behind: bounded memory
+            _pause(_POLL_S)  # ffmpeg is behind: bounded memory
         self._frames.put(data)
 
     def _wait_fed(self, timeout: float | None = None) -> bool:

@@ -86,21 +86,25 @@ def project(view: CameraView, points: np.ndarray, aspect: float, fovy: float = 4
 
 def arm_points(model: mujoco.MjModel, qpos_frames: Iterable[np.ndarray]) -> np.ndarray:
     """Points that outline the arm (and any other body) at each of ``qpos_frames`` (full
-    ``qpos`` vectors): the origin of every body but the world and the ends of each of their
-    geoms' bounding spheres along the world axes. Returns an (N, 3) array."""
+    ``qpos`` vectors): the origin of every body but the world and the eight corners of each of
+    their geoms' bounding boxes (MuJoCo's ``geom_aabb``, in the geom's frame: tighter than its
+    bounding sphere around a long part, so the fitted camera comes as close as the parts allow).
+    Returns an (N, 3) array."""
     data = mujoco.MjData(model)
     bodies = np.arange(1, model.nbody)  # every body but the world (the floor is the world's)
     geoms = np.flatnonzero(model.geom_bodyid != 0)
-    offsets = np.vstack([np.zeros(3), np.eye(3), -np.eye(3)])
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    aabb = model.geom_aabb[geoms].reshape(-1, 6)
+    corners = aabb[:, None, :3] + signs[None] * aabb[:, None, 3:]  # (geoms, 8, 3), geom frame
     chunks = []
     for q in qpos_frames:
         data.qpos[:] = q
         mujoco.mj_kinematics(model, data)
         chunks.append(data.xpos[bodies])
         if len(geoms):
-            centres = data.geom_xpos[geoms]
-            radii = model.geom_rbound[geoms][:, None, None]
-            chunks.append((centres[:, None, :] + offsets[None] * radii).reshape(-1, 3))
+            rot = data.geom_xmat[geoms].reshape(-1, 3, 3)
+            world = data.geom_xpos[geoms][:, None, :] + np.einsum("gij,gkj->gki", rot, corners)
+            chunks.append(world.reshape(-1, 3))
     return np.vstack(chunks) if chunks else np.zeros((0, 3))
 
 

@@ -14,22 +14,23 @@ from __future__ import annotations
 
 import errno
 import os
-import stat
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from ..errors import OutputPathError
+from ..validation import DEFAULT_NAME_MAX, DEFAULT_PATH_MAX, path_limit, temp_name
+from ..validation import check_output_path as _check_output_path
 
-DEFAULT_NAME_MAX = 255
-"""Bytes in a file name where the file system does not say (Linux, macOS and Windows: 255)."""
-DEFAULT_PATH_MAX = 4096
-"""Bytes in a path where the system does not say (Linux: 4096)."""
-_KINDS = (
-    (stat.S_ISCHR, "a character device"),
-    (stat.S_ISBLK, "a block device"),
-    (stat.S_ISFIFO, "a named pipe"),
-    (stat.S_ISSOCK, "a socket"),
-)
+__all__ = [
+    "DEFAULT_NAME_MAX",
+    "DEFAULT_PATH_MAX",
+    "PendingFile",
+    "check_distinct",
+    "check_output_path",
+    "temp_name",
+    "write_atomically",
+    "write_error",
+]
 
 
 def check_output_path(
@@ -39,103 +40,17 @@ def check_output_path(
     what: str = "output",
     suffixes: Sequence[str] = (),
 ) -> Path:
-    """Check that ``path`` can be written, before anything runs; return it as a Path.
+    """Check that ``path`` can be written, before anything runs; return it as a Path
+    (:func:`so101sim.validation.check_output_path`, the one check of every output: this module
+    re-exports it for the recording's files).
 
     Raises:
-        OutputPathError: the suffix is not one of ``suffixes``; the name or the path is longer
-            than the file system allows; the folder does not exist or no file can be created
-            in it; the path is a folder, a device, a pipe or a socket; or the file exists and
-            ``force`` is False.
+        OutputPathError: the path is empty; the suffix is not one of ``suffixes``; the name or
+            the path is longer than the file system allows; the folder does not exist or no
+            file can be created in it; the path is a folder, a device, a pipe or a socket; or
+            the file exists and ``force`` is False.
     """
-    p = Path(path).expanduser()
-    if suffixes and p.suffix.lower() not in suffixes:
-        raise OutputPathError(
-            f"{what} file {str(p)!r} has the wrong extension; expected one of {', '.join(suffixes)}"
-        )
-    folder = _check_folder(p, what)
-    _check_length(p, folder, what)
-    _check_target(p, what, force)
-    _try_creating(PendingFile(p), what)
-    return p
-
-
-def _check_folder(p: Path, what: str) -> Path:
-    folder = p.parent if str(p.parent) else Path(".")
-    if not folder.is_dir():
-        raise OutputPathError(
-            f"cannot write the {what} {str(p)!r}: the folder {str(folder)!r} does not exist; "
-            "expected an existing folder (create it first)"
-        )
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise OutputPathError(
-            f"cannot write the {what} {str(p)!r}: the folder {str(folder)!r} is not writable; "
-            "expected a folder you can write to"
-        )
-    return folder
-
-
-def _limit(folder: Path, name: str, default: int) -> int:
-    try:
-        value = os.pathconf(folder, name)
-    except (OSError, ValueError, AttributeError):  # not known here (or not POSIX)
-        return default
-    return value if value > 0 else default
-
-
-def _check_length(p: Path, folder: Path, what: str) -> None:
-    name_max = _limit(folder, "PC_NAME_MAX", DEFAULT_NAME_MAX)
-    size = len(os.fsencode(p.name))
-    if size > name_max:
-        raise OutputPathError(
-            f"the {what} file name {p.name[:40]!r}… is {size} bytes long; expected at most "
-            f"{name_max} bytes (the file system's limit)"
-        )
-    path_max = _limit(folder, "PC_PATH_MAX", DEFAULT_PATH_MAX)
-    size = len(os.fsencode(os.path.abspath(p)))
-    if size >= path_max:
-        raise OutputPathError(
-            f"the {what} path {str(p)[:40]!r}… is {size} bytes long; expected fewer than "
-            f"{path_max} bytes (the system's limit)"
-        )
-
-
-def _check_target(p: Path, what: str, force: bool) -> None:
-    try:
-        mode = os.stat(p).st_mode
-    except FileNotFoundError:
-        return
-    except OSError as exc:
-        raise OutputPathError(
-            f"cannot write the {what} {str(p)!r}: {exc.strerror}; expected a path you can write"
-        ) from None
-    if stat.S_ISDIR(mode):
-        raise OutputPathError(f"the {what} path {str(p)!r} is a folder; expected a file name")
-    for test, kind in _KINDS:
-        if test(mode):
-            raise OutputPathError(
-                f"the {what} path {str(p)!r} is {kind}, not a regular file; expected the name "
-                "of a regular file (so101sim never replaces devices, pipes or sockets)"
-            )
-    if not force:
-        raise OutputPathError(
-            f"the {what} file {str(p)!r} already exists; expected a new file name, or force "
-            "overwriting (--force)"
-        )
-
-
-def _try_creating(pending: PendingFile, what: str) -> None:
-    """Create and remove the temporary file: the folder's permission bits do not tell about
-    ``/proc``, ``/sys``, read-only mounts or root."""
-    try:
-        fd = os.open(pending.tmp, os.O_WRONLY | os.O_CREAT, 0o644)
-    except OSError as exc:
-        raise OutputPathError(
-            f"cannot write the {what} {str(pending.path)!r}: creating a file in "
-            f"{str(pending.folder)!r} failed ({exc.strerror}); expected a folder where files "
-            "can be created"
-        ) from None
-    os.close(fd)
-    pending.discard()
+    return _check_output_path(path, force=force, what=what, suffixes=suffixes)
 
 
 def check_distinct(*paths: str | os.PathLike[str] | None) -> None:
@@ -161,16 +76,6 @@ def write_error(what: str, path: Path, exc: OSError | str) -> OutputPathError:
     )
 
 
-def temp_name(path: Path, name_max: int = DEFAULT_NAME_MAX) -> str:
-    """The hidden temporary name of ``path``: ``.<stem>.<pid>.partial<suffix>``, the stem cut
-    so that the name fits in ``name_max`` bytes (a legal 250-byte name stays writable)."""
-    stem, tail = path.stem, f".{os.getpid()}.partial{path.suffix}"
-    room = name_max - 1 - len(os.fsencode(tail))
-    while stem and len(os.fsencode(stem)) > room:
-        stem = stem[:-1]
-    return f".{stem}{tail}"
-
-
 class PendingFile:
     """A file written under a hidden temporary name (:attr:`tmp`) next to ``path`` and renamed
     over it by :meth:`commit`; :meth:`discard` removes it. A path never holds half a file.
@@ -182,7 +87,7 @@ class PendingFile:
     def __init__(self, path: Path) -> None:
         self.path = path
         self.folder = path.parent if str(path.parent) else Path(".")
-        self.tmp = self.folder / temp_name(path, _limit(self.folder, "PC_NAME_MAX", 255))
+        self.tmp = self.folder / temp_name(path, path_limit(self.folder, "PC_NAME_MAX", 255))
         self.committed = False
         self._renaming = False
 

@@ -17,6 +17,7 @@ from ..errors import RecordingError, So101SimError
 from ..sim.simulation import Observer
 from ..validation import check_count
 from .csvlog import CsvLog
+from .inline import RecordedFiles
 from .paths import check_distinct, check_output_path
 from .plot import MAX_PLOT_SIZE, MIN_PLOT_SIZE, PLOT_SUFFIXES, TraceCollector, plot_run
 from .settings import VideoSettings
@@ -72,7 +73,7 @@ class Recorder:
         self.observers: list[Observer] = [
             o for o in (self.collector, self.video, self.log) if o is not None
         ]
-        self.outputs: dict[str, Path] = {}
+        self.outputs: dict[str, Path] = RecordedFiles()  # shown inline in Jupyter
         self.errors: dict[str, So101SimError] = {}  # outputs that could not be written
         self._attached = False
         self._plot_tries = 0
@@ -129,7 +130,11 @@ class Recorder:
             raise first
         if self.errors:
             raise next(iter(self.errors.values()))
-        return dict(self.outputs)
+        return RecordedFiles(self.outputs)
+
+    def _repr_html_(self) -> str:
+        """In Jupyter: the files written so far, the video and the plot shown inline."""
+        return RecordedFiles(self.outputs)._repr_html_()
 
     def _finish(self) -> None:
         """Detach, then finish each output not finished yet, each even if another is
@@ -181,7 +186,8 @@ class Recorder:
         w, h = self.plot_size
         # a second try (after a Ctrl-C) may find the file the first one wrote
         force, self._plot_tries = self.force or self._plot_tries > 0, self._plot_tries + 1
-        return plot_run(run, self.plot_path, width=w, height=h, force=force)
+        title = getattr(self.settings, "title", None)  # the run's title heads the plot too
+        return plot_run(run, self.plot_path, width=w, height=h, force=force, title=title)
 
 
 MAX_INTERRUPTS = 2

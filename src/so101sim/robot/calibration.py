@@ -18,7 +18,7 @@ from ..errors import CalibrationError
 from ..model.load import default_units
 from ..motion.lines import UnreadableFileError, read_text_limited
 from ..units import DEG_PER_RAD, GRIPPER, GRIPPER_INDEX, JOINT_NAMES
-from ..validation import check_count
+from ..validation import check_count, checked_path
 
 TICKS_PER_TURN = 4096
 MAX_TICK = TICKS_PER_TURN - 1  # 4095, LeRobot's max_res for the STS3215
@@ -122,7 +122,8 @@ def load_calibration(path: str | Path) -> dict[str, MotorCalibration]:
         CalibrationError: the file is missing, unreadable, not a regular file, too large, not
             UTF-8 text, not JSON, or not a valid SO-101 calibration.
     """
-    p = Path(path).expanduser()
+    # empty, or a name or path too long for the file system: one line, not an OSError
+    p = checked_path(path, "calibration file", error=CalibrationError)
     expected = "expected LeRobot's calibration JSON for the leader arm"
     try:
         text = read_text_limited(p, MAX_CALIBRATION_BYTES)
@@ -204,10 +205,16 @@ def find_calibration(
     :func:`default_calibration` (LeRobot's middle = 2047 ticks, the gripper's range guessed).
 
     Raises:
-        CalibrationError: the file at ``path`` (or LeRobot's file) cannot be read or is invalid.
+        CalibrationError: the file at ``path`` (or LeRobot's file) cannot be read or is invalid;
+            ``path`` or ``leader_id`` is empty.
     """
-    if path:
+    if path is not None:  # an empty path is refused, not taken for "none given"
         return FoundCalibration(load_calibration(path), path)
+    if leader_id is not None and not str(leader_id).strip():
+        raise CalibrationError(
+            "the leader id is empty; expected the id whose LeRobot calibration file to use "
+            "(as given to lerobot-calibrate --teleop.id)"
+        )
     if leader_id and lerobot_calibration_path(leader_id).is_file():
         found = lerobot_calibration_path(leader_id)
         return FoundCalibration(load_calibration(found), found)

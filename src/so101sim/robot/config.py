@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import CameraError, JointNameError, RobotConfigError, So101SimError
 from ..model.arm import load_profile
 from ..scenes import SCENE_PRESETS
-from ..sim.stepping import MAX_SPEED, MIN_SPEED
+from ..sim.stepping import MAX_PLAYBACK_SPEED, MIN_PLAYBACK_SPEED
 from ..units import JOINT_NAMES, STARTING_POSE, normalize_joint_name, parse_pose
 from ..validation import (
     MAX_DURATION_S,
@@ -137,7 +137,8 @@ class SO101SimFollowerConfig:
     :data:`~so101sim.units.STARTING_POSE`'s value)."""
     speed: float = 1.0
     """Real-time mode: simulated seconds per wall-clock second (from
-    :data:`~so101sim.sim.stepping.MIN_SPEED` to :data:`~so101sim.sim.stepping.MAX_SPEED`)."""
+    :data:`~so101sim.sim.stepping.MIN_PLAYBACK_SPEED` to
+    :data:`~so101sim.sim.stepping.MAX_PLAYBACK_SPEED`)."""
     lockstep_action_seconds: float = 0.02
     """Lockstep mode: simulated seconds each ``send_action`` advances (0.02: a 50 Hz loop)."""
     lockstep_observation_seconds: float = 0.0
@@ -186,7 +187,11 @@ class SO101SimFollowerConfig:
             raise RobotConfigError(f"initial_pose is invalid: {exc}") from None
         # the range the physics thread's Pacer accepts (checked here, not in the thread)
         self.speed = check_range(
-            self.speed, "speed", low=MIN_SPEED, high=MAX_SPEED, error=RobotConfigError
+            self.speed,
+            "speed",
+            low=MIN_PLAYBACK_SPEED,
+            high=MAX_PLAYBACK_SPEED,
+            error=RobotConfigError,
         )
         self.lockstep_action_seconds = _check_seconds(
             self.lockstep_action_seconds, "lockstep_action_seconds"

@@ -84,8 +84,10 @@ _CLAMP_MESSAGE = "Relative goal position magnitude had to be clamped to be safe.
 _CLIP_MESSAGE = "Goal position beyond the joint limits was clipped to the limits.\n%s"
 
 
-class _SimClock:
-    """Simulated time as a :class:`so101sim.robot.helpers.Clock`.
+class _FollowerClock:
+    """The follower's own time as a :class:`so101sim.robot.helpers.Clock` (what
+    ``robot.clock`` gives the helpers; not :class:`so101sim.lab.simclock.SimClock`, which
+    stands in for the ``time`` module in a student's script).
 
     Lockstep: ``sleep`` advances the physics. Real time: ``sleep`` waits on the wall clock
     (scaled by ``speed``) while the background thread advances it.
@@ -141,7 +143,7 @@ class SO101SimFollower:
         self._connected = False
         self._runner = RobotThreads(self._sim, str(self), self.config.speed)  # until connect()
         self._finalizer: weakref.finalize | None = None
-        self._clock = _SimClock(self)
+        self._clock = _FollowerClock(self)
 
     # ------------------------------------------------------------------ LeRobot's interface
     def __str__(self) -> str:
@@ -318,7 +320,7 @@ class SO101SimFollower:
             return self._sim.time
 
     @property
-    def clock(self) -> _SimClock:
+    def clock(self) -> _FollowerClock:
         """This arm's clock (simulated time) for :mod:`so101sim.robot.helpers`."""
         return self._clock
 

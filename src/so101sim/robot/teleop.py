@@ -35,7 +35,7 @@ from ..units import (
     LEROBOT_SUFFIX,
     ArmUnits,
 )
-from ..validation import check_count, check_duration
+from ..validation import check_count, check_duration, check_path_text
 from .calibration import (
     CALIBRATION_FIELDS,
     LEADER_NAME,
@@ -98,6 +98,7 @@ class FeetechLeaderBus:
         baudrate: int = DEFAULT_BAUDRATE,
         sdk: Any = None,
     ) -> None:
+        check_path_text(port, "serial port", error=LeaderError)  # "" is no port
         self._sdk = sdk if sdk is not None else _import_sdk()
         scs = self._sdk
         self.port = port

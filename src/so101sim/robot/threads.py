@@ -25,7 +25,7 @@ import numpy as np
 
 from ..errors import ClosedError
 from ..sim.simulation import Pacer, Simulation
-from ..sim.stepping import hold_steps, state_size
+from ..sim.stepping import advance_unobserved, state_size
 
 log = logging.getLogger(__name__)
 
@@ -103,7 +103,7 @@ class RobotThreads:
         if n <= 0:
             return
         if sim.was_commanded and not sim.observers:  # the lockstep path: nothing else to do
-            hold_steps(sim.model, sim.data, None, n, self._dt, self._scratch)
+            advance_unobserved(sim.model, sim.data, None, n, self._dt, self._scratch)
         else:
             sim.step(n, trace=False)
         if self.viewer is not None:

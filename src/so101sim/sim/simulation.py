@@ -41,7 +41,15 @@ from .profiles import (
     plan,
     steps_for,
 )
-from .stepping import Observer, Pacer, Trace, ViewerObserver, advance, hold_steps, measured_radians
+from .stepping import (
+    Observer,
+    Pacer,
+    Trace,
+    ViewerObserver,
+    advance,
+    advance_unobserved,
+    measured_radians,
+)
 
 if TYPE_CHECKING:
     from ..kinematics import Kinematics, TipPose
@@ -353,7 +361,7 @@ class Simulation:
             with self.lock:  # nothing watches: MuJoCo's own loop, on the targets as set
                 q = None if self.was_commanded else self.units.to_radians(self.pose_array())
                 self._state.commanded = True
-                hold_steps(self.model, self.data, q, n)
+                advance_unobserved(self.model, self.data, q, n)
             empty = np.empty((0, len(JOINT_NAMES)))
             return Trace(np.empty(0), empty, empty, True, n)
         target = self.commanded_array()
@@ -454,10 +462,18 @@ class Simulation:
             DurationError, SettingError: a bad duration, path or profile.
         """
         from ..kinematics import plan_line, solve_ik  # imported here: only tip moves need it
+        from ..kinematics.paths import MAX_LINE_STEPS
 
         _ = self.kinematics  # held here, so that the planner's calls share it
         check_choice(path, "path", ("line", "joint"))
         n = steps_for(_required(duration), self.timestep, maximum=MAX_MOVE_DURATION_S)
+        if path == "line" and n > MAX_LINE_STEPS:  # a model with a very short timestep
+            raise SettingError(
+                f"a straight tip line of {duration:g} s is {n} physics steps of "
+                f"{self.timestep * 1000:g} ms; expected at most {MAX_LINE_STEPS} steps "
+                f"({MAX_LINE_STEPS * self.timestep:g} s with this model): split it into "
+                "shorter lines, or use path='joint'"
+            )
         start = self.commanded_array()
         if path == "joint":
             goal = solve_ik(tip, pitch=pitch, roll=roll, initial=start, model=self.model)
@@ -506,6 +522,24 @@ class Simulation:
             start = self.commanded_array()
             targets = np.broadcast_to(start, (n, len(start)))
             return self._segment("hold", phase, start, targets, viewer, observers, trace)
+
+    @gated  # no MuJoCo call left running at exit (exitgate)
+    def run_targets(
+        self,
+        kind: str,
+        phase: str,
+        start: np.ndarray,
+        targets: np.ndarray,
+        *,
+        viewer: Any = None,
+        observers: Sequence[Observer] = (),
+        trace: bool | None = None,
+    ) -> SegmentResult:
+        """Step a segment already planned (and checked): ``targets`` (n, 6) arm units from the
+        commanded ``start``, as :meth:`move_to` (``kind`` "move") or :meth:`hold` ("hold")
+        would after planning it (:func:`so101sim.motion.plan.run_plan` runs a plan this way)."""
+        with self.lock:
+            return self._segment(kind, phase, start, targets, viewer, observers, trace)
 
     def _segment(
         self,

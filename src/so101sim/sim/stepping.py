@@ -1,4 +1,11 @@
-"""Stepping: simulated time, observers, divergence checks and pacing to the wall clock.
+"""Stepping: THE stepping kernel, simulated time, observers and pacing to the wall clock.
+
+Every MuJoCo step so101sim takes goes through one of the two entry points of this kernel,
+each in blocks, in C, inside the exit gate (:mod:`so101sim.exitgate`), with one divergence
+check (:func:`_check_divergence`): :func:`step_block` (every step's state recorded, through
+``mujoco.rollout``: the simulation's :func:`advance`, the robust preflight's rollouts) and
+:func:`advance_unobserved` (nothing recorded, ``mj_step(nstep)``: a lockstep robot, an environment's
+step, the pose finder, ``Simulation.step`` with nothing watching).
 
 Simulated time is the clock of record: a run of N steps is N * timestep seconds of simulated
 time whatever the machine's speed. :func:`advance` replays a precomputed block of targets in C
@@ -51,9 +58,9 @@ def measured_radians(m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------- pacing
-MAX_SPEED = 1000.0
+MAX_PLAYBACK_SPEED = 1000.0
 """The fastest playback a :class:`Pacer` accepts, in multiples of real time."""
-MIN_SPEED = 1e-3
+MIN_PLAYBACK_SPEED = 1e-3
 """The slowest playback a :class:`Pacer` accepts (1/1000 of real time)."""
 
 
@@ -77,10 +84,10 @@ class Pacer:
         self.speed = check_range(
             speed,
             "speed",
-            low=MIN_SPEED,
-            high=MAX_SPEED,
+            low=MIN_PLAYBACK_SPEED,
+            high=MAX_PLAYBACK_SPEED,
             expected=(
-                f"a multiple of real time from {MIN_SPEED:g} to {MAX_SPEED:g} "
+                f"a multiple of real time from {MIN_PLAYBACK_SPEED:g} to {MAX_PLAYBACK_SPEED:g} "
                 "(1 = real time, 0.5 = half speed)"
             ),
         )
@@ -123,6 +130,9 @@ class Trace:
     qpos: np.ndarray  # (n, 6)
     completed: bool = True
     steps: int = -1  # steps taken; -1: len(time) (a trace may keep no per-step arrays)
+    # the blocks observers see: every step's whole state (FULLPHYSICS rows: time, qpos, qvel,
+    # ...), as the kernel recorded it; None in the trace a run returns
+    states: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.steps if self.steps >= 0 else len(self.time)
@@ -152,14 +162,29 @@ class Observer:
         return None
 
 
+_wall = time.perf_counter  # the real clock, even while a script's clock follows simulated time
+
+MAX_VIEWER_PERIOD = 0.25
+"""Simulated seconds between two viewer frames at most, however slowly the viewer draws."""
+
+
 class ViewerObserver(Observer):
-    """Syncs a viewer (anything with ``sync()`` and ``is_running()``) ``fps`` times per simulated
-    second, paced to the wall clock by a :class:`Pacer`."""
+    """Syncs a viewer (anything with ``sync()`` and ``is_running()``) up to ``fps`` times per
+    simulated second, paced to the wall clock by a :class:`Pacer`.
+
+    A viewer whose ``sync()`` waits while it draws (MuJoCo's passive viewer: about 25 ms a
+    frame with the full meshes on a CPU renderer) would slow the run below real time at 60
+    frames a second; so the observer measures what a sync costs (a running mean) and syncs less
+    often when needed: drawing then takes at most half the wall-clock time, and the run keeps
+    real time (or ``speed`` times it) wherever the machine can step that fast, with fewer
+    frames shown (at least one every :data:`MAX_VIEWER_PERIOD` simulated seconds)."""
 
     def __init__(self, viewer: Any, pacer: Pacer | None = None, fps: float = 60.0) -> None:
         self.viewer = viewer
         self.pacer = pacer if pacer is not None else Pacer()
         self.period = 1.0 / fps
+        self.sync_cost = 0.0  # wall seconds a sync takes (running mean)
+        self.syncs = 0
         self._next = -math.inf
         self._last = -math.inf
 
@@ -176,9 +201,14 @@ class ViewerObserver(Observer):
         if not self.viewer.is_running():
             return False
         self.pacer.wait(d.time)
+        start = _wall()
         self.viewer.sync()
+        cost = _wall() - start
+        self.syncs += 1
+        self.sync_cost = cost if self.syncs == 1 else 0.8 * self.sync_cost + 0.2 * cost
+        period = max(self.period, min(MAX_VIEWER_PERIOD, 2.0 * self.sync_cost * self.pacer.speed))
         self._last = d.time
-        self._next = d.time + self.period - 1e-9
+        self._next = d.time + period - 1e-9
         return True
 
 
@@ -198,15 +228,22 @@ def _first_bad_step(states: np.ndarray, t0: float, dt: float, qpos_cols: np.ndar
     return int(hits[0]) if hits.size else None
 
 
+ADVICE = "Expected stable physics: check the model's gains, timestep and targets"
+"""The end of a divergence message: what to do about it (a caller may give its own)."""
+
+
 def _check_divergence(
     m: mujoco.MjModel,
     d: mujoco.MjData,
     states: np.ndarray,
     start_state: np.ndarray,
     qpos_cols: np.ndarray,
+    advice: str = ADVICE,
 ) -> None:
-    """Raise SimulationDivergedError if the block of ``states`` (FULLPHYSICS, one row per step)
-    diverged, after putting ``d`` back to the last good state (the state when it happened)."""
+    """THE divergence check of every stepping path (:func:`step_block`; :func:`advance_unobserved`
+    steps a diverged block again to come here). Raise SimulationDivergedError if the block of
+    ``states`` (FULLPHYSICS, one row per step) diverged, after putting ``d`` back to the last
+    good state (the state when it happened); ``advice`` ends the message."""
     warned = [w for w in _DIVERGENCE_WARNINGS if d.warning[w].number > 0]
     t0, dt = float(start_state[0]), float(m.opt.timestep)
     i = _first_bad_step(states, t0, dt, qpos_cols)
@@ -230,8 +267,7 @@ def _check_divergence(
         d.warning[w].number = 0
     raise SimulationDivergedError(
         f"the simulation diverged at t = {when:.3f} s: {cause}; the state is left as it was "
-        f"at t = {float(good[0]):.3f} s. Expected stable physics: check the model's gains, "
-        "timestep and targets"
+        f"at t = {float(good[0]):.3f} s. {advice}"
     )
 
 
@@ -247,11 +283,15 @@ def _runner() -> _rollout.Rollout:
 
 
 def _step_block(
-    m: mujoco.MjModel, d: mujoco.MjData, ctrl_full: np.ndarray, s0: np.ndarray
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    ctrl_full: np.ndarray,
+    s0: np.ndarray,
+    sensordata: np.ndarray | None = None,
 ) -> np.ndarray:
     """Take ``len(ctrl_full)`` steps from the state ``s0`` (that of ``d``), applying row i of
     ``ctrl_full`` (all actuators) during step i; return the state after each step
-    (FULLPHYSICS layout)."""
+    (FULLPHYSICS layout), and fill ``sensordata`` (one row per step) if given."""
     k = len(ctrl_full)
     states = np.empty((k, len(s0)))
     if k >= _ROLLOUT_MIN_STEPS:
@@ -265,7 +305,9 @@ def _step_block(
             nstep=k,
             initial_warmstart=d.qacc_warmstart[None].copy(),
             state=states[None],
-            sensordata=np.empty((1, k, m.nsensordata)),
+            sensordata=(
+                np.empty((1, k, m.nsensordata)) if sensordata is None else sensordata[None]
+            ),
         )
         # rollout leaves d holding the last step's result; make ctrl match it, as a loop would.
         d.ctrl[:] = ctrl_full[-1]
@@ -274,6 +316,40 @@ def _step_block(
             d.ctrl[:] = ctrl_full[i]
             mujoco.mj_step(m, d)
             mujoco.mj_getState(m, d, states[i], _STATE_SPEC)
+            if sensordata is not None:
+                sensordata[i] = d.sensordata
+    return states
+
+
+def step_block(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    ctrl_full: np.ndarray,
+    *,
+    sensordata: np.ndarray | None = None,
+    scratch: np.ndarray | None = None,
+    advice: str = ADVICE,
+) -> np.ndarray:
+    """The stepping kernel with every step recorded: ``len(ctrl_full)`` steps (at most a few
+    thousand: callers cut longer runs into blocks) from ``d``'s state, applying row i of
+    ``ctrl_full`` (all ``m.nu`` actuators) during step i, in C (``mujoco.rollout`` on this
+    thread; a plain ``mj_step`` loop for a few steps, the same physics bit for bit), inside the
+    exit gate, then the one divergence check. Returns the state after each step (FULLPHYSICS
+    layout: time, qpos, qvel, ...) and fills ``sensordata`` (``(k, m.nsensordata)``) if given.
+    ``d`` is left holding the last step's result.
+
+    Raises:
+        SimulationDivergedError: MuJoCo reported an unstable state, or the state is not finite;
+            ``d`` is left in the last good state. The message ends with ``advice``.
+        ClosedError: the interpreter is exiting (:mod:`so101sim.exitgate`).
+    """
+    s0 = scratch if scratch is not None else np.empty(state_size(m))
+    for w in _DIVERGENCE_WARNINGS:  # MuJoCo's reset zeroes them too: count from 0 every block
+        d.warning[w].number = 0
+    with mujoco_call():  # refused once the interpreter exits (exitgate)
+        mujoco.mj_getState(m, d, s0, _STATE_SPEC)
+        states = _step_block(m, d, ctrl_full, s0, sensordata)
+        _check_divergence(m, d, states, s0, 1 + arm_index(m).qpos, advice)
     return states
 
 
@@ -287,29 +363,32 @@ def _block_size(observers: Sequence[Observer], now: float, dt: float, left: int)
     return min(left, _CHUNK, max(1, math.ceil((t_next - now) / dt - 1e-9)))
 
 
-def hold_steps(
+def advance_unobserved(
     m: mujoco.MjModel,
     d: mujoco.MjData,
     target: np.ndarray | None,
     n: int,
     dt: float = 0.0,
     scratch: np.ndarray | None = None,
+    *,
+    advice: str = ADVICE,
 ) -> int:
-    """Step ``n`` times commanding ``target`` (radians, arm joint order; None: the targets in
-    ``d.ctrl``), nothing watching: :func:`advance` without observers or trace, in MuJoCo's own
-    loop (``mj_step(nstep=k)``, the same physics bit for bit), blocks of at most
-    :data:`_CHUNK` steps. Kept lean (a lockstep robot calls it for every action): it reads
-    back only the time. ``dt``: the model's timestep if the caller has it; ``scratch``: a
-    buffer of :func:`state_size` floats the caller keeps for it. Returns ``n``.
+    """The stepping kernel with nothing recorded: step ``n`` times commanding ``target``
+    (radians, arm joint order; None: the targets in ``d.ctrl``, all actuators held), in
+    MuJoCo's own loop (``mj_step(nstep=k)``, the same physics bit for bit as
+    :func:`step_block`), blocks of at most :data:`_CHUNK` steps, each inside the exit gate.
+    Kept lean (a lockstep robot calls it for every action): it reads back only the time.
+    ``dt``: the model's timestep if the caller has it; ``scratch``: a buffer of
+    :func:`state_size` floats the caller keeps for it. Returns ``n``.
 
     Divergence: MuJoCo checks every step's positions, velocities and accelerations and resets
     the data when one is bad (not finite, or beyond ``mjMAXVAL``), so a block diverged when its
     time went back; only at time 0 (a reset looks like the start) are the warnings read too.
-    The block is then stepped again by :func:`advance` from its start, which finds the last
-    good state and raises.
+    The block is then stepped again from its start by :func:`step_block`, whose divergence
+    check (the only one) finds the last good state and raises.
 
     Raises:
-        SimulationDivergedError: as :func:`advance`.
+        SimulationDivergedError: as :func:`step_block` (the message ends with ``advice``).
         ClosedError: the interpreter is exiting (:mod:`so101sim.exitgate`).
     """
     if target is not None:
@@ -327,8 +406,7 @@ def hold_steps(
             mujoco.mj_step(m, d, nstep=k)
         if d.time < t0 + (k - 0.5) * dt or (at_start and _warnings(d) != warned):
             mujoco.mj_setState(m, d, s0, _STATE_SPEC)
-            q = d.ctrl[arm_index(m).actuator].copy()
-            advance(m, d, np.broadcast_to(q, (k, len(q))), keep_trace=False)
+            step_block(m, d, np.repeat(d.ctrl[None], k, axis=0), advice=advice)
         done += k
     return n
 
@@ -378,9 +456,7 @@ def advance(
     dt = m.opt.timestep
     done = 0
     completed = True
-    s0 = np.empty(mujoco.mj_stateSize(m, _STATE_SPEC))
-    for w in _DIVERGENCE_WARNINGS:  # MuJoCo's reset zeroes them too: count from 0 every block
-        d.warning[w].number = 0
+    s0 = np.empty(state_size(m))
     for o in observers:
         o.on_start(m, d)
     while done < n:
@@ -388,11 +464,10 @@ def advance(
         if k:
             ctrl_full = np.repeat(d.ctrl[None], k, axis=0)
             ctrl_full[:, idx.actuator] = targets[done : done + k]
-            with mujoco_call():  # refused once the interpreter exits (exitgate)
-                mujoco.mj_getState(m, d, s0, _STATE_SPEC)
-                states = _step_block(m, d, ctrl_full, s0)
-                _check_divergence(m, d, states, s0, qpos_cols)
-            block = Trace(states[:, 0], targets[done : done + k], states[:, qpos_cols])
+            states = step_block(m, d, ctrl_full, scratch=s0)
+            block = Trace(
+                states[:, 0], targets[done : done + k], states[:, qpos_cols], states=states
+            )
             if keep_trace:
                 times[done : done + k] = block.time
                 qpos[done : done + k] = block.qpos

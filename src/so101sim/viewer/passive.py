@@ -28,7 +28,8 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ..errors import SettingError, ViewerError
+from ..errors import ClosedError, SettingError, ViewerError
+from ..exitgate import mujoco_call
 from ..model.trim import is_physics_only
 from ..validation import check_choice
 
@@ -183,11 +184,14 @@ class MirroredViewer:
         m, d = self.model, self.data
         while (state := self._take()) is not None:
             t, arrays = state
-            with self.handle.lock():
-                for f, a in arrays.items():
-                    getattr(d, f)[:] = a
-                d.time = t
-                mujoco.mj_forward(m, d)
+            try:
+                with mujoco_call(), self.handle.lock():  # none once the interpreter exits
+                    for f, a in arrays.items():
+                        getattr(d, f)[:] = a
+                    d.time = t
+                    mujoco.mj_forward(m, d)
+            except ClosedError:
+                return
             self.handle.sync()
             self.frames += 1
 
@@ -301,8 +305,8 @@ def open_viewer(
     """
     if not mirror and is_physics_only(m):
         raise SettingError(
-            "this model was loaded with physics_only=True: its meshes have no triangles to "
-            "draw; open the viewer with mirror=True (it draws the full model of the same file) "
+            "this model was loaded with physics_only=True: it has no visual geoms to draw;"
+            " open the viewer with mirror=True (it draws the full model of the same file) "
             "or load the model with so101sim.load_model(path)"
         )
     _check_can_open(quality, mirror)

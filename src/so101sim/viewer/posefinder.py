@@ -1,22 +1,28 @@
 """The pose finder: pose the arm in the viewer, get the pose in the arm's units.
 
-``so101sim pose`` opens the viewer with its joint sliders (right panel, "Joint"). The arm is
-simulated with gravity and the actuators switched off (on a private copy of the model), so it
-stays where a slider or a drag (double-click a part, then Ctrl + right-drag) puts it; contacts
-still keep it out of the floor. The viewer's pose is read about 15 times a second; when it has
-moved by more than a small threshold since the last pose reported and then stays still for a
-few reads, :class:`PoseWatcher` reports it, and the command prints it ready to paste as a
-Python dict and as a TOML pose for a motion file.
+``so101sim pose`` opens MuJoCo's own (managed) viewer on the pose scene: the arm simulated with
+gravity and the actuators switched off (on a private copy of the model), so it stays where a
+slider or a drag (double-click a part, then Ctrl + right-drag) puts it; contacts still keep it
+out of the floor. MuJoCo's Joint sliders (right panel, "Joint") can be dragged while the
+simulation is paused (Space, or Pause in the left panel): this viewer can pause, the passive
+one cannot, which is why the pose finder does not use the passive viewer.
+:func:`find_poses` runs it: the window in the calling thread, and a thread that reads the
+arm's pose about 15 times a second; when it has moved by more than a small threshold since
+the last pose reported and then stays still for a few reads, :class:`PoseWatcher` reports it
+(``on_pose``), and the command prints it ready to paste as a Python dict and as a TOML pose.
 
-:func:`open_pose_viewer` opens that viewer (its error without a display is true for a script
-as for the command). The library never prints: :func:`watch_poses` yields
-:class:`PoseChange` objects and :func:`format_python` / :func:`format_toml` return text.
+For a viewer of your own (a passive viewer you pause yourself, a test's fake),
+:func:`open_pose_viewer` and :func:`watch_poses` do the same as a generator. The library never
+prints: :class:`PoseChange` objects go to the caller, and :func:`format_python` /
+:func:`format_toml` return text. The web studio's pose finder (:mod:`so101sim.studio.pose`)
+needs no display.
 """
 
 from __future__ import annotations
 
 import copy
-from collections.abc import Iterator
+import threading
+from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -30,6 +36,7 @@ from ..errors import ModelError, ViewerError
 from ..kinematics import TipPose, for_model
 from ..model.load import arm_index, arm_units, load_model
 from ..sim.simulation import Pacer, measured_radians
+from ..sim.stepping import advance_unobserved
 from ..units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose
 
 
@@ -113,6 +120,64 @@ NO_DISPLAY_MESSAGE = (
 )
 
 
+def check_display() -> None:
+    """Raise :class:`ViewerError` when there is no display for the pose finder's window."""
+    if not _viewer.has_display():
+        raise ViewerError(NO_DISPLAY_MESSAGE)
+
+
+INSTRUCTIONS = (
+    "Press Space (or Pause, left panel) to pause, open 'Joint' in the right panel and drag its "
+    "sliders (radians there); or double-click a part and Ctrl+right-drag it. Each pose the arm "
+    "is left in is printed below, in degrees; close the window to finish."
+)
+
+
+def find_poses(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    on_pose: Callable[[PoseChange], Any],
+    *,
+    watcher: PoseWatcher | None = None,
+    period: float = 1.0 / 15.0,
+) -> int:
+    """Open MuJoCo's viewer on the pose scene ``(m, d)`` (:func:`pose_scene`) and call
+    ``on_pose`` with each pose the arm is left in (the first at once), from a thread of its own,
+    until the window is closed; returns the number of poses reported.
+
+    Raises:
+        ViewerError: there is no display.
+        Exception: what ``on_pose`` raised (the watching stops; the window stays until closed).
+    """
+    check_display()
+    watcher = watcher if watcher is not None else PoseWatcher(arm_units(m))
+    stop = threading.Event()
+    failed: list[BaseException] = []
+
+    def watch() -> None:
+        while not stop.is_set():
+            q = np.array(measured_radians(m, d), copy=True)  # the viewer steps meanwhile
+            change = watcher.update(q, float(d.time))
+            if change is not None:
+                try:
+                    on_pose(replace(change, tip=_tip(m, change.pose)))
+                except BaseException as exc:  # handed to the caller after the window closes
+                    failed.append(exc)
+                    return
+            stop.wait(period)
+
+    thread = threading.Thread(target=watch, name="so101sim-pose-watcher", daemon=True)
+    thread.start()
+    try:
+        _viewer.view(m, d)  # MuJoCo's managed viewer: blocks until the window is closed
+    finally:
+        stop.set()
+        thread.join(timeout=5.0)
+    if failed:
+        raise failed[0]
+    return watcher.count
+
+
 def open_pose_viewer(m: mujoco.MjModel, d: mujoco.MjData) -> AbstractContextManager[Any]:
     """Open the viewer with its joint sliders on the pose scene (a context manager).
 
@@ -148,8 +213,9 @@ def watch_poses(
         if change is not None:
             yield replace(change, tip=_tip(m, change.pose))
         with viewer.lock():
-            for _ in range(n):
-                mujoco.mj_step(m, d)
+            advance_unobserved(
+                m, d, None, n
+            )  # the stepping kernel: the targets as the sliders set them
         pacer.wait(float(d.time))
 
 
@@ -174,6 +240,8 @@ def format_toml(name: str, pose: Pose) -> str:
 __all__ = [
     "PoseChange",
     "PoseWatcher",
+    "check_display",
+    "find_poses",
     "format_python",
     "format_toml",
     "pose_scene",

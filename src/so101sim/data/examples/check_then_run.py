@@ -1,6 +1,7 @@
 """Check a motion file in the simulation, and run it only if it passes.
 
-python examples/check_then_run.py [motion.toml]   # default: wave.toml next to this script
+(in the folder the examples were copied to: so101sim examples FOLDER; cd FOLDER)
+python check_then_run.py [motion.toml]   # default: wave.toml next to this script
 """
 
 import sys

@@ -1,6 +1,7 @@
 """The same lab motion on so101sim's own API, with results to inspect.
 
-Run: python examples/clean_api.py
+(in the folder the examples were copied to: so101sim examples FOLDER; cd FOLDER)
+Run: python clean_api.py
 """
 
 from so101sim import STARTING_POSE, ZERO_POSE, Simulation

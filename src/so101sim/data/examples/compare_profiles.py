@@ -3,7 +3,8 @@
 The last row, "limited, fastest", gives each lab move the shortest duration the ``limited``
 profile's joint limits allow (rounded up to whole physics steps).
 
-python examples/compare_profiles.py
+(in the folder the examples were copied to: so101sim examples FOLDER; cd FOLDER)
+python compare_profiles.py
 """
 
 import dataclasses

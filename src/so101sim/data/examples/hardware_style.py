@@ -1,8 +1,9 @@
 """The lab motion written once, for the real SO-101 (through LeRobot) and for the simulation.
 
-    python examples/hardware_style.py                      # simulated arm (real time)
-    python examples/hardware_style.py --viewer             # ... and watch it
-    python examples/hardware_style.py --robot real --port /dev/ttyACM0 --id my_follower
+    (in the folder the examples were copied to: so101sim examples FOLDER; cd FOLDER)
+    python hardware_style.py                      # simulated arm (real time)
+    python hardware_style.py --viewer             # ... and watch it
+    python hardware_style.py --robot real --port /dev/ttyACM0 --id my_follower
 
 Only ``make_robot`` knows which arm it drives; everything after it is the same code.
 """

@@ -5,7 +5,8 @@ Derived the SO-101's forward kinematics yourself (DH, or the planar chain of
 docs/kinematics.md)? Put your numbers into ``textbook_tip`` below and see how far your tip is
 from the simulator's.
 
-python examples/kinematics_tip.py
+(in the folder the examples were copied to: so101sim examples FOLDER; cd FOLDER)
+python kinematics_tip.py
 """
 
 import math

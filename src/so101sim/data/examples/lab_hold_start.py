@@ -1,7 +1,8 @@
 """The lab's first script: put the arm in its starting pose and keep it there.
 
 Opens the viewer on a desktop (close it to stop early); runs headless on a server.
-Run: python examples/lab_hold_start.py
+(in the folder the examples were copied to: so101sim examples FOLDER; cd FOLDER)
+Run: python lab_hold_start.py
 """
 
 import contextlib

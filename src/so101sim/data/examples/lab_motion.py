@@ -1,7 +1,8 @@
 """The lab's motion on the lab's helpers: start -> all zeros in 2 s -> hold 2 s -> back in 2 s.
 
 Opens the viewer on a desktop (real time); runs headless on a server and prints each phase.
-Run: python examples/lab_motion.py
+(in the folder the examples were copied to: so101sim examples FOLDER; cd FOLDER)
+Run: python lab_motion.py
 """
 
 import contextlib

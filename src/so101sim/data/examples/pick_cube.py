@@ -1,8 +1,9 @@
 """Pick up a cube: the so101sim/PickCube-v0 Gymnasium environment driven by its scripted
 expert, step by step, as a policy would drive it; optionally recorded to a video.
 
-python examples/pick_cube.py                 # seed 0, prints the episode
-python examples/pick_cube.py --seed 3 --record pick.mp4
+(in the folder the examples were copied to: so101sim examples FOLDER; cd FOLDER)
+python pick_cube.py                 # seed 0, prints the episode
+python pick_cube.py --seed 3 --record pick.mp4
 """
 
 import argparse

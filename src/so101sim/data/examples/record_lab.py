@@ -1,6 +1,7 @@
 """Record the lab's motion for the hand-in: a video, a plot and a CSV log, no screen recorder.
 
-python examples/record_lab.py            # writes record_lab.mp4, .png and .csv here
+(in the folder the examples were copied to: so101sim examples FOLDER; cd FOLDER)
+python record_lab.py            # writes record_lab.mp4, .png and .csv here
 """
 
 from so101sim import STARTING_POSE, ZERO_POSE, Recorder, Simulation

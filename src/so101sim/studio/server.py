@@ -1,0 +1,426 @@
+"""The studio's web server: the arm in 3D in a browser, a run's panel and its timeline.
+
+:class:`Studio` starts a `viser <https://viser.studio>`_ server on ``host:port`` (nothing
+listens beyond this machine unless ``host`` says so) and draws the model with `mjviser
+<https://github.com/mujocolab/mjviser>`_ (the model's meshes and colours, the scene's objects);
+the browser renders it (WebGL), so the server needs no display and no GPU. :meth:`Studio.show`
+puts a state on the page (time, phase, commanded vs measured angles) and keeps it on the
+run's timeline (:class:`Timeline`, at most :data:`MAX_FRAMES` frames, thinned beyond); after
+:meth:`Studio.finish` the page's play, pause and restart buttons and its timeline slider
+replay and scrub the run. :meth:`Studio.close` stops the server and its threads.
+
+viser and mjviser are an optional extra: :func:`require_viser` raises :class:`StudioError`
+naming ``pip install "so101sim[web]"`` when they are missing.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import errno
+import logging
+import socket
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from ..errors import SettingError, So101SimError
+from ..model import arm_index, arm_units
+from ..units import GRIPPER, JOINT_NAMES
+from ..validation import check_range
+
+log = logging.getLogger(__name__)
+
+DEFAULT_HOST = "127.0.0.1"
+DEFAULT_PORT = 8080
+MAX_FRAMES = 20_000
+"""Frames a timeline keeps at most; beyond, every other frame is dropped (the rate halves), so
+an hour-long run holds as much memory as a ten-minute one."""
+FRAME_RATE = 30.0  # frames per simulated second on the timeline (and live, at most)
+INSTALL_HINT = 'pip install "so101sim[web]"'
+
+
+class StudioError(So101SimError, RuntimeError):
+    """The studio cannot start: viser/mjviser missing, or the port is in use."""
+
+
+def require_viser() -> tuple[Any, Any]:
+    """``(viser, mjviser.ViserMujocoScene)``, or :class:`StudioError` naming the extra."""
+    try:
+        import viser
+        from mjviser import ViserMujocoScene
+    except ImportError as exc:
+        raise StudioError(
+            f"the web studio needs viser and mjviser ({exc.name} is not installed); "
+            f"expected them installed: {INSTALL_HINT}"
+        ) from None
+    return viser, ViserMujocoScene
+
+
+@contextlib.contextmanager
+def quiet_viser() -> Any:
+    """viser prints its address box and "Server stopped" with ``rich.print`` whatever its
+    ``verbose``; the library never prints: while starting and stopping, they go to the log."""
+    try:
+        import rich
+    except ImportError:  # viser without rich: nothing to quiet
+        yield
+        return
+    saved = rich.print
+    rich.print = lambda *a, **k: log.debug("viser: %s", " ".join(map(str, a)))
+    try:
+        yield
+    finally:
+        rich.print = saved
+
+
+def check_port(port: int) -> int:
+    """A TCP port number, 1 to 65535."""
+    return int(check_range(port, "port", low=1, high=65535, expected="a TCP port from 1 to 65535"))
+
+
+def port_in_use_message(host: str, port: int) -> str:
+    return (
+        f"port {port} on {host} is in use (another studio or server?); "
+        f"expected a free port: pass --port with another number"
+    )
+
+
+def ensure_free(host: str, port: int) -> None:
+    """Raise :class:`StudioError` if nothing can listen on ``host:port`` (viser itself would
+    quietly take the next port; a student must get the URL they asked for)."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind((host, port))
+        except OSError as exc:
+            if exc.errno == errno.EADDRINUSE:
+                raise StudioError(port_in_use_message(host, port)) from None
+            raise StudioError(
+                f"cannot listen on {host}:{port} ({exc.strerror}); expected an address of "
+                "this machine for --host (127.0.0.1, or 0.0.0.0 for every interface)"
+            ) from None
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One state on the timeline: simulated time, phase, joint positions (qpos, mocap) and the
+    commanded and measured angles in the arm's units (JOINT_NAMES order; None: not known)."""
+
+    time: float
+    phase: str
+    qpos: np.ndarray
+    mocap_pos: np.ndarray
+    mocap_quat: np.ndarray
+    commanded: np.ndarray | None
+    measured: np.ndarray
+
+
+class Timeline:
+    """The frames of a run, at most ``capacity``: when full, every other frame is dropped and
+    the spacing doubles (bounded memory, however long the run)."""
+
+    def __init__(self, rate: float = FRAME_RATE, capacity: int = MAX_FRAMES) -> None:
+        self.period = self._period0 = 1.0 / rate
+        self.capacity = max(2, int(capacity))
+        self.frames: list[Frame] = []
+        self._next = -np.inf
+
+    def add(self, frame: Frame, force: bool = False) -> bool:
+        """Keep ``frame`` if a frame is due at its time (or ``force``); True if kept."""
+        if self.frames and frame.time < self.frames[-1].time:  # the clock went back: a reset
+            self.frames.clear()
+            self.period = self._period0
+        elif not force and frame.time < self._next:
+            return False
+        self.frames.append(frame)
+        self._next = frame.time + self.period - 1e-9
+        if len(self.frames) > self.capacity:
+            self.frames = self.frames[::2]
+            self.period *= 2
+        return True
+
+    @property
+    def duration(self) -> float:
+        return self.frames[-1].time - self.frames[0].time if self.frames else 0.0
+
+    def at(self, t: float) -> Frame:
+        """The last frame at or before simulated time ``t`` (the first one before it)."""
+        times = [f.time for f in self.frames]
+        i = int(np.searchsorted(times, t, side="right")) - 1
+        return self.frames[max(0, min(i, len(self.frames) - 1))]
+
+
+def _angles_table(frame: Frame) -> str:
+    """Markdown: one row per joint, commanded and measured (degrees; gripper 0-100)."""
+    rows = ["| joint | commanded | measured |", "|---|---:|---:|"]
+    for i, name in enumerate(JOINT_NAMES):
+        unit = "" if name == GRIPPER else "°"
+        cmd = "–" if frame.commanded is None else f"{frame.commanded[i]:.1f}{unit}"
+        rows.append(f"| {name} | {cmd} | {frame.measured[i]:.1f}{unit} |")
+    return "\n".join(rows)
+
+
+class Studio:
+    """A web page showing ``model``: open :attr:`url` in a browser.
+
+    ``show(d, ...)`` puts a state on the page; ``finish()`` turns the page into a player of
+    the run; ``close()`` (or leaving the ``with`` block) stops the server. Thread-safe: the
+    page's buttons run in viser's threads, ``show`` in the caller's.
+
+    Raises:
+        StudioError: viser/mjviser are missing, or ``host:port`` is in use.
+        SettingError: a port outside 1-65535.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        *,
+        host: str = DEFAULT_HOST,
+        port: int = DEFAULT_PORT,
+        title: str = "so101sim studio",
+        controls: bool = True,
+    ) -> None:
+        viser, scene_class = require_viser()
+        port = check_port(port)
+        ensure_free(host, port)
+        self.host, self.port, self.title = host, port, title
+        self.model = model
+        self.units = arm_units(model)
+        self._index = arm_index(model)
+        self._lock = threading.RLock()
+        self.timeline = Timeline()
+        self.finished = False
+        self.playing = True  # live: the run goes on; finished: the player plays
+        self._play_time = 0.0
+        self._slider_set = float("nan")  # the timeline's value the player last set
+        self._closed = threading.Event()
+        self._player: threading.Thread | None = None
+        self._scratch = mujoco.MjData(model)
+        with quiet_viser():
+            self.server = viser.ViserServer(host=host, port=port, label=title, verbose=False)
+        try:
+            if self.server.get_port() != port:  # taken between the check and the start
+                raise StudioError(port_in_use_message(host, port))
+            # mjviser adjusts the model's visual settings: give it a copy
+            self.scene = scene_class(self.server, copy.copy(model), num_envs=1)
+            self.scene.camera_tracking_enabled = False
+            self._frame_camera()
+            self._build_panel(controls)
+        except BaseException:
+            with quiet_viser():
+                self.server.stop()
+            raise
+        log.debug("studio serving %s", self.url)
+
+    # ------------------------------------------------------------------ page
+    @property
+    def url(self) -> str:
+        host = "127.0.0.1" if self.host in ("", "0.0.0.0") else self.host
+        host = f"[{host}]" if ":" in host else host
+        return f"http://{host}:{self.port}"
+
+    def _repr_html_(self) -> str:  # Jupyter shows the studio as a link
+        return f'<a href="{self.url}" target="_blank">{self.title}: {self.url}</a>'
+
+    def __repr__(self) -> str:
+        return f"Studio({self.url})"
+
+    def _frame_camera(self) -> None:
+        cam = self.server.initial_camera
+        cam.position = (0.42, 0.3, 0.3)
+        cam.look_at = (0.12, 0.0, 0.12)
+        cam.up = (0.0, 0.0, 1.0)
+
+    def _build_panel(self, controls: bool) -> None:
+        gui = self.server.gui
+        gui.configure_theme(control_width="large")
+        self.status = gui.add_markdown("**t = 0.000 s**")
+        self.angles = gui.add_markdown("")
+        if not controls:
+            self.play_button = self.pause_button = self.restart_button = None
+            self.slider = None
+            return
+        with gui.add_folder("Playback"):
+            self.play_button = gui.add_button("Play")
+            self.pause_button = gui.add_button("Pause")
+            self.restart_button = gui.add_button("Restart", disabled=True)
+            self.slider = gui.add_slider(
+                "Timeline (s)", min=0.0, max=1.0, step=0.001, initial_value=0.0, disabled=True
+            )
+        self.play_button.on_click(lambda _: self.play())
+        self.pause_button.on_click(lambda _: self.pause())
+        self.restart_button.on_click(lambda _: self.restart())
+        self.slider.on_update(lambda _: self._scrubbed())
+
+    # ------------------------------------------------------------------ live
+    def frame_of(
+        self,
+        d: mujoco.MjData,
+        phase: str = "",
+        commanded: Sequence[float] | np.ndarray | None = None,
+    ) -> Frame:
+        """The state of ``d`` as a :class:`Frame` (``commanded`` in the arm's units)."""
+        q = np.asarray(d.qpos[self._index.qpos], dtype=float)
+        return Frame(
+            float(d.time),
+            phase,
+            np.array(d.qpos, copy=True),
+            np.array(d.mocap_pos, copy=True),
+            np.array(d.mocap_quat, copy=True),
+            None if commanded is None else np.asarray(commanded, dtype=float).copy(),
+            self.units.from_radians(q),
+        )
+
+    def show(
+        self,
+        d: mujoco.MjData,
+        phase: str = "",
+        commanded: Sequence[float] | np.ndarray | None = None,
+        *,
+        keep: bool = True,
+    ) -> None:
+        """Put the state of ``d`` on the page (positions must be computed: after a step or
+        ``mj_forward``) and, with ``keep``, on the timeline."""
+        frame = self.frame_of(d, phase, commanded)
+        with self._lock:
+            if keep:
+                self.timeline.add(frame)
+            self._draw(frame, d)
+
+    def _draw(self, frame: Frame, d: mujoco.MjData | None = None) -> None:
+        if d is None:
+            d = self._scratch
+            d.qpos[:] = frame.qpos
+            d.mocap_pos[:] = frame.mocap_pos
+            d.mocap_quat[:] = frame.mocap_quat
+            d.time = frame.time
+            mujoco.mj_kinematics(self.model, d)
+        self.scene.update_from_mjdata(d)
+        phase = f" · phase **{frame.phase}**" if frame.phase else ""
+        state = "" if not self.finished else (" · playing" if self.playing else " · paused")
+        self.status.content = f"**t = {frame.time:.3f} s**{phase}{state}"
+        self.angles.content = _angles_table(frame)
+
+    def wait_while_paused(self) -> bool:
+        """For a live run: block while the page's Pause is on; True if it paused at all."""
+        paused = False
+        while not self.playing and not self._closed.is_set() and not self.finished:
+            paused = True
+            time.sleep(0.02)
+        return paused
+
+    # ------------------------------------------------------------------ player
+    def finish(self) -> None:
+        """The run is over: the page's buttons and timeline now replay and scrub it."""
+        with self._lock:
+            if self.finished or self.slider is None:
+                self.finished = True
+                return
+            self.finished = True
+            self.playing = False
+            frames = self.timeline.frames
+            if frames:
+                t0, t1 = frames[0].time, frames[-1].time
+                self.slider.min, self.slider.max = t0, max(t1, t0 + 1e-3)
+                self._slider_set = self.slider.value = t1
+                self._play_time = t1
+            self.slider.disabled = False
+            if self.restart_button is not None:
+                self.restart_button.disabled = False
+        self._player = threading.Thread(target=self._play_loop, name="so101sim-studio-player")
+        self._player.daemon = True
+        self._player.start()
+
+    def play(self) -> None:
+        with self._lock:
+            frames = self.timeline.frames
+            if self.finished and frames and self._play_time >= frames[-1].time:
+                self._play_time = frames[0].time
+            self.playing = True
+
+    def pause(self) -> None:
+        with self._lock:
+            self.playing = False
+
+    def restart(self) -> None:
+        with self._lock:
+            if self.timeline.frames:
+                self._play_time = self.timeline.frames[0].time
+                self.playing = True
+
+    def seek(self, t: float) -> Frame | None:
+        """Show the finished run at simulated time ``t`` (pauses the player)."""
+        with self._lock:
+            if not self.timeline.frames:
+                return None
+            self.playing = False
+            self._play_time = float(t)
+            frame = self.timeline.at(self._play_time)
+            self._draw(frame)
+            return frame
+
+    def _scrubbed(self) -> None:
+        if not self.finished or self.slider is None:
+            return
+        with self._lock:
+            t = float(self.slider.value)
+            if t != self._slider_set:  # moved by the user, not by the player
+                self.seek(t)
+
+    def _play_loop(self, speed: float = 1.0) -> None:
+        last = time.perf_counter()
+        while not self._closed.wait(1.0 / FRAME_RATE):
+            now = time.perf_counter()
+            with self._lock:
+                if not self.playing or not self.timeline.frames:
+                    last = now
+                    continue
+                end = self.timeline.frames[-1].time
+                self._play_time = min(end, self._play_time + (now - last) * self.speed)
+                last = now
+                frame = self.timeline.at(self._play_time)
+                self._draw(frame)
+                if self.slider is not None:
+                    self._slider_set = round(self._play_time, 3)
+                    self.slider.value = self._slider_set
+                if self._play_time >= end:
+                    self.playing = False
+
+    speed = 1.0  # the player's speed (set to the run's --speed)
+
+    # ------------------------------------------------------------------ life
+    @property
+    def closed(self) -> bool:
+        return self._closed.is_set()
+
+    def close(self) -> None:
+        """Stop the player and the server (waits for their threads)."""
+        if self._closed.is_set():
+            return
+        self._closed.set()
+        if self._player is not None and self._player is not threading.current_thread():
+            self._player.join(timeout=5.0)
+        with contextlib.suppress(Exception), quiet_viser():
+            self.server.stop()
+        log.debug("studio stopped")
+
+    def __enter__(self) -> Studio:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def check_linger(seconds: float) -> float:
+    """Seconds the studio stays up after a run: 0 to a day."""
+    if seconds is None or seconds < 0:
+        raise SettingError(f"linger = {seconds!r}; expected seconds from 0 to 86400")
+    return float(check_range(seconds, "linger", low=0.0, high=86400.0))

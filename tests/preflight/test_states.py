@@ -1,0 +1,69 @@
+"""The lab helpers' warnings from the kernel's recorded states (preflight.states): the same
+samples as the per-step recorder, bit for bit, with the physics stepped in whole blocks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from so101sim import Simulation
+from so101sim.preflight.measure import StepRecorder
+from so101sim.preflight.states import StateRecorder, vectorisable
+from so101sim.units import STARTING_POSE, ZERO_POSE
+
+INTO_FLOOR = {**ZERO_POSE, "shoulder_lift": 60.0, "elbow_flex": 60.0}
+CURLED = {**ZERO_POSE, "shoulder_lift": -90.0, "elbow_flex": 90.0, "wrist_flex": 95.0}
+
+
+def _record(cls, poses):
+    sim = Simulation()
+    recs = []
+    for pose in poses:
+        move, hold = cls(sim.model), cls(sim.model)
+        sim.move_to(pose, 0.8, observers=[move], trace=True)
+        sim.hold(0.3, observers=[hold], trace=True)
+        recs += [move, hold]
+    return sim, recs
+
+
+@pytest.mark.parametrize(
+    "poses", [[ZERO_POSE, STARTING_POSE], [INTO_FLOOR, STARTING_POSE], [CURLED, INTO_FLOOR]]
+)
+def test_the_state_recorder_gives_the_step_recorders_samples_bit_for_bit(poses):
+    a, steps = _record(StepRecorder, poses)
+    b, states = _record(StateRecorder, poses)
+    assert np.array_equal(a.data.qpos, b.data.qpos)  # the same physics
+    touched = 0
+    for s, v in zip(steps, states, strict=True):
+        assert np.array_equal(np.array(s.times), v.times)
+        assert np.array_equal(np.array(s.forces), v.forces)  # MuJoCo's own forces, exactly
+        assert s.contacts == v.contacts  # every contact of every step, same order and depth
+        touched += len(v.contacts)
+    if poses[0] is not ZERO_POSE:
+        assert touched > 0  # the cases that touch did touch
+
+
+def test_the_lab_helpers_step_whole_blocks_in_c(monkeypatch):
+    from so101sim.lab import hold_position, move_to_pose
+    from so101sim.sim import stepping
+
+    sim = Simulation()
+    assert vectorisable(sim.model)
+    blocks = []
+    real = stepping.step_block
+    monkeypatch.setattr(
+        stepping, "step_block", lambda m, d, c, **k: blocks.append(len(c)) or real(m, d, c, **k)
+    )
+    move_to_pose(sim.model, sim.data, None, ZERO_POSE, 2.0)
+    hold_position(sim.model, sim.data, None, 2.0)
+    assert blocks == [1000, 1000]  # one call into C per segment, not one per step
+
+
+def test_a_model_whose_forces_do_not_follow_from_the_states_is_watched_per_step():
+    import copy
+
+    from so101sim.model import load_model
+
+    m = copy.copy(load_model())
+    m.actuator_gaintype[0] = 2  # user-defined gain: nothing to vectorise
+    assert not vectorisable(m)
