@@ -263,7 +263,9 @@ def test_a_variant_scales_the_stiffness_where_the_actuator_kind_keeps_it(arm):
 
 
 def test_the_summary_says_per_check_how_many_failed_the_worst_and_what_to_change():
-    report = check_variants(LAB, count=30, seed=0)
+    # the vendored ideal actuators: their lab moves saturate, so effort failures are worded
+    # (the default sts3215's slewed goal keeps the lab's effort under half its limit)
+    report = check_variants(LAB, count=30, seed=0, arm="official")
     text = format_variants(report)
     counts = report.failing()
     n = len(report.outcomes)

@@ -82,18 +82,24 @@ def load_model(
     variant = profile_key(prof)  # "" for the file's own actuators (official)
     key = (str(p), p.stat().st_mtime_ns, physics_only, variant)
 
+    def spec_fn() -> mujoco.MjSpec:
+        spec = mujoco.MjSpec.from_file(str(p))
+        if variant:
+            apply_profile(spec, prof)
+        return spec
+
     def compile_fn() -> mujoco.MjModel:
         if not variant:
             return mujoco.MjModel.from_xml_path(str(p))
-        spec = mujoco.MjSpec.from_file(str(p))
-        apply_profile(spec, prof)
-        return spec.compile()
+        return spec_fn().compile()
 
     with _lock:
         model = _cache.get(key)
         if model is None:
             try:
-                model = load_or_compile(p, compile_fn, variant=variant, physics_only=physics_only)
+                model = load_or_compile(
+                    p, compile_fn, variant=variant, physics_only=physics_only, spec_fn=spec_fn
+                )
             except (ValueError, mujoco.FatalError) as exc:
                 raise ModelError(f"model file {str(p)!r} does not compile: {exc}") from exc
             arm_index(model)  # fail now, not at the first command, if joints are missing
