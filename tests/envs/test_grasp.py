@@ -17,6 +17,7 @@ from so101sim.envs.grasp import (
     sample_cube_placements,
 )
 from so101sim.model import load_model
+from so101sim.model.arm import gripper_full_range
 from so101sim.robot.config import GRIPPER_TORQUE_FRACTION
 from so101sim.scenes import build_scene
 from so101sim.sim.simulation import Simulation
@@ -55,10 +56,14 @@ def test_mujocos_default_contacts_let_the_cube_sink_into_the_jaws():
 def test_the_gripper_force_is_limited_as_on_the_real_arm():
     m = build_scene(cube_scene(0.2, 0.0, 0.0, 0.03))
     g = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, "gripper")
-    full = m.actuator_forcerange[g].copy()
+    full = gripper_full_range(None)  # the default profile's gripper torque limit
     limit_gripper(m)
     np.testing.assert_allclose(m.actuator_forcerange[g], full * GRIPPER_TORQUE_FRACTION)
-    assert GRIPPER_TORQUE_FRACTION == 0.5 and full[1] == load_model().actuator_forcerange[g][1]
+    # the profile's own 50 % (torque_scale) is replaced, not applied a second time
+    assert GRIPPER_TORQUE_FRACTION == 0.5 and full[1] == 2 * load_model().actuator_forcerange[g][1]
+    official = build_scene(cube_scene(0.2, 0.0, 0.0, 0.03), arm="official")
+    limit_gripper(official, arm="official")
+    assert official.actuator_forcerange[g][1] == 0.5 * 3.35
 
 
 def test_closing_on_nothing_the_jaws_close_as_in_the_lab_and_on_a_cube_they_stop_at_it():

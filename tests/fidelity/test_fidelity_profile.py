@@ -27,7 +27,12 @@ def test_shipped_profiles_load_by_name():
 
 
 def test_official_profile_reproduces_the_vendored_model():
-    plain, official = load_model(), load_model(arm="official")
+    import mujoco
+
+    from so101sim.model import scene_path
+
+    plain = mujoco.MjModel.from_xml_path(str(scene_path()))  # the file, as it is
+    official = load_model(arm="official")
     for f in ("dof_damping", "dof_frictionloss", "dof_armature", "actuator_gainprm",
               "actuator_biasprm", "actuator_forcerange", "actuator_ctrlrange"):  # fmt: skip
         np.testing.assert_allclose(getattr(official, f), getattr(plain, f), err_msg=f)

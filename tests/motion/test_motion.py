@@ -14,19 +14,31 @@ def within(pose, expected, tol):
     return all(abs(pose[n] - expected[n]) <= tol for n in JOINT_NAMES)
 
 
-def test_lab_motion_reaches_its_targets(sim):
+# degrees from the target at the end of each lab step (to_zero, hold, return): the vendored
+# ideal actuators reach it; the fitted STS3215 (P = 16) sags under the arm's weight (measured:
+# 7.8° at the elbow after the move, 2.9° after the hold, 6.1° at the shoulder back at rest)
+LAB_REACH = {"official": (1.0, 1.0, 1.0), "sts3215": (8.5, 3.5, 7.0)}
+
+
+@pytest.mark.parametrize("arm", LAB_REACH)
+def test_lab_motion_reaches_its_targets(arm):
+    sim = Simulation(arm=arm)
     result = run_motion(sim.model, sim.data, LAB_MOTION)
     to_zero, hold, back = result.segments
     assert [s.phase for s in result.segments] == ["to_zero", "hold", "return"]
     assert [s.steps for s in result.segments] == [1000, 1000, 1000]
-    assert within(to_zero.reached, ZERO_POSE, 1.0)
-    assert within(hold.reached, ZERO_POSE, 1.0)
-    assert within(back.reached, STARTING_POSE, 1.0)
+    tol = LAB_REACH[arm]
+    assert within(to_zero.reached, ZERO_POSE, tol[0])
+    assert within(hold.reached, ZERO_POSE, tol[1])
+    assert within(back.reached, STARTING_POSE, tol[2])
+    if arm == "sts3215":  # it does sag: the figures above are not loose bounds on nothing
+        assert max(to_zero.final_error.values()) > 5.0
     assert back.target == pytest.approx(STARTING_POSE)
     assert result.completed and result.end_time == pytest.approx(6.0)
-    # the tracking error is reported per joint and is small for a 2 s move
+    # the tracking error is reported per joint: small for a 2 s move on ideal servos, the
+    # sag and lag of the fitted servo (8.0° at the elbow) on the default arm
     assert set(to_zero.max_tracking_error) == set(JOINT_NAMES)
-    assert 0 < to_zero.worst_tracking_error[1] < 2.0
+    assert 0 < to_zero.worst_tracking_error[1] < (2.0 if arm == "official" else 9.0)
 
 
 def test_two_runs_are_bit_identical(sim):
@@ -71,7 +83,10 @@ def test_hold_keeps_the_last_target(sim):
     r = sim.hold(3.0)
     assert r.kind == "hold"
     np.testing.assert_array_equal(r.commanded, np.zeros((1500, 6)))
-    assert within(r.reached, ZERO_POSE, 0.2)
+    assert within(r.reached, ZERO_POSE, 3.0)  # sts3215 holds the arm out 2.7° low at most
+    ideal = Simulation(arm="official")
+    ideal.move_to(ZERO_POSE, 1.0)
+    assert within(ideal.hold(3.0).reached, ZERO_POSE, 0.2)
 
 
 @pytest.mark.parametrize("bad", [0, -1.0, math.nan, math.inf, "2", None, True])
@@ -108,7 +123,8 @@ def test_plan_move_returns_the_whole_move_at_once(sim):
     assert sim.time == 0.0  # planning does not step
 
 
-def test_segment_result_helpers(sim):
+def test_segment_result_helpers():
+    sim = Simulation(arm="official")  # the ideal actuators end a move on its target
     r = sim.move_to(ZERO_POSE, 2.0)
     assert isinstance(r, SegmentResult)
     assert r.duration == pytest.approx(2.0)
@@ -121,6 +137,7 @@ def test_tip_moves_in_a_sequence_are_planned_before_the_first_one_runs(sim):
     from so101sim.motion import run_segments
 
     ok = [Move.to_tip((0.22, 0.0, 0.08), 1.0, pitch=-60), Move.to_tip((0.22, 0.08, 0.08), 1.0)]
+    sim = Simulation(arm="official")  # the plan, on ideal servos (sts3215 sags 2.3 cm here)
     r = run_segments(sim, ok)
     assert r.completed and len(r.segments) == 2
     assert np.linalg.norm(sim.tip().position - (0.22, 0.08, 0.08)) < 0.01

@@ -496,7 +496,7 @@ def test_a_tip_move_loads_as_a_tip_move_and_the_next_steps_continue_from_its_end
 
 def test_a_tip_motion_file_runs_and_ends_with_the_tip_there():
     mf = _parse(TIP)
-    sim = Simulation(initial_pose=mf.start)
+    sim = Simulation(initial_pose=mf.start, arm="official")  # the plan, on ideal servos
     result = run_motion(sim.model, sim.data, mf.steps)
     assert result.completed and result.end_time == pytest.approx(2.5)
     sim.hold(0.5)  # settle
@@ -570,7 +570,13 @@ def test_the_tip_square_example_is_checked_and_stays_on_its_lines():
     assert report.passed, report.failures
     deviations = [s.line_deviation_mm for s in report.steps if s.line_deviation_mm is not None]
     assert len(deviations) == 4
-    assert all(commanded <= 2.0 and measured <= 2.0 for commanded, measured in deviations)
+    # the commanded tip is on the lines; the default arm (sts3215, P = 16) sags under the
+    # arm's weight, so its tip runs 12-15 mm off them (as a real arm at P = 16 would)
+    assert all(commanded <= 2.0 and 5.0 < measured <= 20.0 for commanded, measured in deviations)
+    ideal = check_motion_file(path, arm="official")
+    assert all(
+        m <= 2.0 for _, m in (s.line_deviation_mm for s in ideal.steps[:4] if s.line_deviation_mm)
+    )
 
 
 TIP_VALUES = st.one_of(

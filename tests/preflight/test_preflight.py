@@ -54,21 +54,28 @@ def test_the_report_measures_the_closest_approach_to_a_limit(lab_report):
     # the rest pose holds shoulder_lift 2° above its lower limit, and the arm sags a little
     assert first.limit_side == "lower"
     expected = STARTING_POSE["shoulder_lift"] - lo
-    assert first.limit_margin == pytest.approx(expected)
+    assert first.limit_margin == pytest.approx(expected, abs=1e-3)  # sts3215: 0.0002° sag
     # at the zero pose (the hold) it is mid-range: far from both limits
     assert lab_report.steps[1].joints["shoulder_lift"].limit_margin > 0.9 * (hi - lo) / 2
 
 
 def test_the_linear_profile_spikes_but_smooth_profiles_do_not(lab_report):
     th = lab_report.thresholds
-    peaks = [j.peak_effort for s in lab_report.steps for j in s.joints.values()]
+    # the vendored ideal actuators (kp 998) meet the lab's straight lines' velocity steps by
+    # saturating for a few ms; the fitted servo's firmware slews its goal, and its effort (a
+    # fraction of the profile's 3.92 N·m) stays under half
+    ideal = check_motion_file(lab_motion_path(), arm="official")
+    peaks = [j.peak_effort for s in ideal.steps for j in s.joints.values()]
     assert max(peaks) > th.max_effort  # the lab's straight lines saturate for a few ms
-    assert any("smooth profile" in n for n in lab_report.notes)
+    assert any("smooth profile" in n for n in ideal.notes)
+    peaks = [j.peak_effort for s in lab_report.steps for j in s.joints.values()]
+    assert 0.2 < max(peaks) < 0.5 and not lab_report.notes
     smooth = preflight(
         [
             Move({**STARTING_POSE, **dict.fromkeys(JOINT_NAMES[:5], 0.0)}, 2.0, "minimum_jerk"),
             Hold(1.0),
-        ]
+        ],
+        arm="official",
     )
     assert smooth.passed
     assert max(j.peak_effort for s in smooth.steps for j in s.joints.values()) < th.max_effort
@@ -110,7 +117,7 @@ def test_a_move_too_fast_for_the_actuators_fails():
 
 def test_findings_are_the_failures_and_notes_as_data():
     target = {**STARTING_POSE, "shoulder_lift": 0.0, "elbow_flex": 0.0}
-    report = preflight([Move(target, 0.1), Hold(0.5)])
+    report = preflight([Move(target, 0.1), Hold(0.5)], arm="official")  # the ideal actuators
     failed = [f for f in report.findings if f.failed]
     assert [describe(f, report.thresholds) for f in failed] == list(report.failures)
     notes = [describe(f, report.thresholds) for f in report.findings if not f.failed]
@@ -130,7 +137,7 @@ def test_judging_compares_each_figure_once():
         limit_side="upper",
         peak_effort=0.95,
         saturated=0.01,
-        peak_tracking_error=6.0,
+        peak_tracking_error=16.0,
     )
     step = StepCheck(1, "p", "move", 0, 0.0, 1.0, {"wrist_flex": joint, "gripper": joint}, ())
     measured = Measurements((step,), {"wrist_flex": (-90.0, 90.0), "gripper": (0.0, 100.0)}, ())

@@ -20,7 +20,7 @@ EVERY_JOINT = {
 
 
 def _record(cls, poses):
-    sim = Simulation()
+    sim = Simulation(arm="official")  # forces from the states: plain position actuators
     recs = []
     for pose in poses:
         move, hold = cls(sim.model), cls(sim.model)
@@ -57,8 +57,10 @@ def test_the_lab_helpers_step_whole_blocks_in_c(monkeypatch):
     from so101sim.lab import hold_position, move_to_pose
     from so101sim.sim import stepping
 
-    sim = Simulation()
+    sim = Simulation(arm="official")  # the handout's model: the file's own actuators
     assert vectorisable(sim.model)
+    # the default arm's servo (slew-limited goal, delay) acts on more than the states hold
+    assert not vectorisable(Simulation().model)
     blocks = []
     real = stepping.step_block
     monkeypatch.setattr(

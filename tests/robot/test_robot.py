@@ -24,6 +24,7 @@ from so101sim.errors import (
     So101SimError,
 )
 from so101sim.model import arm_index, default_units, load_model
+from so101sim.model.arm import gripper_full_range
 from so101sim.robot import (
     GRIPPER_TORQUE_FRACTION,
     SO101SimFollower,
@@ -69,6 +70,12 @@ def physics_threads() -> list[threading.Thread]:
     return [t for t in threading.enumerate() if t.name.startswith("so101sim-physics")]
 
 
+# how close the default arm (sts3215: a real STS3215 at P = 16) ends to a goal: it sags under
+# the arm's weight (2.3° at the shoulder at the zero pose) and stops inside its Coulomb
+# friction's dead band (frictionloss / kp: 1.3°); the vendored ideal actuators end within 0.1°
+REACH_DEG = 4.0
+
+
 def lockstep(**kw) -> SO101SimFollower:
     kw.setdefault("lockstep_action_seconds", 0.0)
     return SO101SimFollower(SO101SimFollowerConfig(mode="lockstep", **kw))
@@ -81,7 +88,7 @@ def test_lerobot_script_reaches_goals_in_realtime_mode():
     final = observations[-1]
     assert observations[0] == pytest.approx({f"{n}.pos": v for n, v in STARTING_POSE.items()})
     for k in KEYS:
-        assert abs(final[k] - GOAL[k]) < 1.0, (k, final[k])
+        assert abs(final[k] - GOAL[k]) < REACH_DEG, (k, final[k])
     # the arm moved while the script slept: the physics ran on its own
     assert robot.time >= 1.4
     assert not robot.is_connected
@@ -103,7 +110,8 @@ def test_lerobot_script_in_lockstep_is_bit_identical_and_reaches_goals():
     # 1 + 30 reads and 30 sends in the move, 10 reads in the hold, 10 ms each
     assert r1.time == pytest.approx(0.01 * (31 + 30 + 10))
     for k in KEYS:
-        assert abs(obs1[-1][k] - GOAL[k]) < 1.0, k
+        # 0.2 s after a 0.6 s move the default servo is still settling (5.3° at the elbow)
+        assert abs(obs1[-1][k] - GOAL[k]) < 2 * REACH_DEG, k
     assert physics_threads() == []
 
 
@@ -118,7 +126,7 @@ def test_step_advances_simulated_time_in_whole_physics_steps():
     robot.step(0.5)
     after = robot.get_observation()["shoulder_pan.pos"]
     assert before == pytest.approx(0.0, abs=1e-6)  # no time passed: the goal has not acted yet
-    assert after == pytest.approx(10.0, abs=0.5)
+    assert after == pytest.approx(10.0, abs=1.5)  # the friction's dead band: 1.3°
     robot.disconnect()
 
 
@@ -381,7 +389,8 @@ def test_clamp_then_clip():
 def test_gripper_effort_is_bounded_on_a_private_model_copy():
     shared = load_model()
     g = arm_index(shared).actuator[JOINT_NAMES.index("gripper")]
-    full = shared.actuator_forcerange[g].copy()
+    full = gripper_full_range(None)  # the profile's gripper torque limit, before LeRobot's 50 %
+    own = shared.actuator_forcerange[g].copy()
     robot = lockstep()
     with robot:
         m = robot.simulation.model
@@ -390,14 +399,16 @@ def test_gripper_effort_is_bounded_on_a_private_model_copy():
         assert m.actuator_forcelimited[g]
         # other joints keep their full range, and the shared model is untouched
         assert list(m.actuator_forcerange[0]) == list(shared.actuator_forcerange[0])
-    assert list(shared.actuator_forcerange[g]) == list(full)
+    assert list(shared.actuator_forcerange[g]) == list(own)
     robot2 = lockstep(gripper_torque_fraction=0.25)
     with robot2:
         assert robot2.simulation.model.actuator_forcerange[g][1] == pytest.approx(full[1] / 4)
     # the bound acts: a gripper commanded far away never pushes harder than the bound
     with robot:
         robot.send_action({"gripper.pos": 100.0})
-        robot.step(0.01)
+        # the default servo acts 27 ms after the goal is written and slews its goal toward
+        # it: after 0.1 s the error asks for more than the bound
+        robot.step(0.1)
         force = robot.simulation.data.actuator_force[g]
         assert abs(force) == pytest.approx(full[1] * GRIPPER_TORQUE_FRACTION)
 

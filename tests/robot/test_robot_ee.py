@@ -30,7 +30,14 @@ def _tip(action):
     return tip_pose({**{k: v for k, v in action.items() if k in BODY_KEYS}, "gripper": 0.0})
 
 
-def test_driving_the_follower_by_its_tip_ends_within_2_mm_of_the_target(robot):
+@pytest.mark.parametrize("arm, within_m", [("official", 2e-3), ("sts3215", 15e-3)])
+def test_driving_the_follower_by_its_tip_ends_within_2_mm_of_the_target(arm, within_m):
+    """On ideal servos the tip ends within 2 mm; the default arm (sts3215) sags 11 mm below the
+    commanded tip here, as a real arm at P = 16 does, and the controller still gets there
+    (stepping from what it commanded, not from the sagging measured tip, which stalled 5-6 cm
+    short)."""
+    robot = SO101SimFollower(SO101SimFollowerConfig(mode="lockstep", arm=arm))
+    robot.connect()
     target = np.array([0.20, 0.05, 0.05])
     ee = EndEffectorController(robot)
     start = robot.time
@@ -39,8 +46,9 @@ def test_driving_the_follower_by_its_tip_ends_within_2_mm_of_the_target(robot):
     robot.step(0.5)  # settle
     assert robot.time == pytest.approx(start + 1.5)
     tip = ee.tip()
-    assert np.linalg.norm(tip.position - target) < 2e-3
-    assert tip.pitch == pytest.approx(-90, abs=1)
+    robot.disconnect()
+    assert np.linalg.norm(tip.position - target) < within_m
+    assert tip.pitch == pytest.approx(-90, abs=1 if arm == "official" else 5)
 
 
 def test_each_call_moves_the_tips_target_at_most_one_step():

@@ -139,13 +139,15 @@ def test_lab_motion_on_the_lockstep_sim_is_deterministic_and_reaches_its_targets
     assert elapsed == pytest.approx(2.8)
     assert elapsed2 == elapsed
     assert np.array_equal(hold.observed, records2[1].observed)
-    assert all(abs(v - ZERO_POSE[k[:-4]]) < 1.0 for k, v in hold.reached.items())
-    # holding sends nothing, and the arm does not creep: it stays at its goal
+    # the default arm (sts3215, a real STS3215 at P = 16) holds the arm out a few degrees low
+    # (its weight against an 11 N·m/rad servo) and stops inside its friction's dead band
+    assert all(abs(v - ZERO_POSE[k[:-4]]) < 3.5 for k, v in hold.reached.items())
+    # holding sends nothing, and the arm does not creep: it settles, it does not drift away
     assert hold.actions_sent == 0
     err = np.abs(hold.observed - np.array(list(ZERO_POSE.values())))
     assert err[-1].max() <= err[0].max()
-    assert err[-1].max() < 0.1
-    assert all(abs(v - STARTING_POSE[k[:-4]]) < 1.0 for k, v in rest.reached.items())
+    assert err[-1].max() < 3.5
+    assert all(abs(v - STARTING_POSE[k[:-4]]) < 7.0 for k, v in rest.reached.items())
     assert list(to_zero.reached) == list(MOTOR_KEYS)
 
 
@@ -157,5 +159,5 @@ def test_same_helpers_drive_the_realtime_sim():
         hold_robot(robot, 0.3)
         obs = robot.get_observation()
     assert rec.actions_sent == 20
-    for name, value in target.items():
-        assert abs(obs[f"{name}.pos"] - value) < 1.0, name
+    for name, value in target.items():  # within the default servo's sag and dead band
+        assert abs(obs[f"{name}.pos"] - value) < 3.0, name

@@ -265,7 +265,7 @@ def test_teleoperation_mirrors_the_leader_on_the_lockstep_sim():
     assert elapsed == pytest.approx(1.0, abs=0.002)  # 60 ticks at 60 Hz of simulated time
     for n, v in target.items():
         assert abs(result.last_action[f"{n}.pos"] - v) < 0.1, n  # tick rounding only
-        assert abs(obs[f"{n}.pos"] - v) < 1.0, n
+        assert abs(obs[f"{n}.pos"] - v) < 4.0, n  # the default servo's sag (3.2° here)
 
 
 def test_teleoperation_clips_the_leader_to_the_followers_limits(caplog):

@@ -28,7 +28,7 @@ def rollout(env, seed: int, steps: int = 12) -> list[dict]:
 
 def model_arrays(m: mujoco.MjModel) -> dict[str, np.ndarray]:
     names = ("geom_rgba", "light_diffuse", "cam_fovy", "geom_size", "body_mass", "geom_friction",
-             "actuator_gainprm", "dof_damping", "jnt_range", "opt.timestep")  # fmt: skip
+             "actuator_biasprm", "dof_damping", "jnt_range", "opt.timestep")  # fmt: skip
     return {n: np.array(m.opt.timestep if n == "opt.timestep" else getattr(m, n)) for n in names}
 
 
@@ -75,7 +75,7 @@ def test_each_family_changes_what_it_says_and_nothing_else():
         "object_mass": {"body_mass"},
         "friction": {"geom_friction"},
         "object_size": {"geom_size", "body_mass"},
-        "actuators": {"actuator_gainprm", "dof_damping"},
+        "actuators": {"actuator_biasprm", "dof_damping"},  # the stiffness is -biasprm[1]
     }
     for family, touched in changes.items():
         env = gym.make(ID, randomize={family: 0.3 if family != "camera_fovy_deg" else 5.0})

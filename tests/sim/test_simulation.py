@@ -139,7 +139,12 @@ def test_set_pose_and_command(sim):
     full = sim.command({"elbow_flex.pos": 10.0})
     assert full["elbow_flex"] == 10.0 and full["shoulder_lift"] == 0.0
     sim.step(500)
-    assert sim.pose()["elbow_flex"] == pytest.approx(10.0, abs=0.5)
+    # the default arm (sts3215, P = 16) sags about 2° under the forearm's weight
+    assert sim.pose()["elbow_flex"] == pytest.approx(10.0, abs=3.0)
+    ideal = Simulation(arm="official", initial_pose=ZERO_POSE)
+    ideal.command({"elbow_flex.pos": 10.0})
+    ideal.step(500)
+    assert ideal.pose()["elbow_flex"] == pytest.approx(10.0, abs=0.5)  # the vendored actuator
 
 
 def test_bad_target_moves_nothing(sim):
@@ -197,8 +202,9 @@ def test_a_target_written_to_ctrl_directly_is_honoured(sim):
 
     sim.data.ctrl[:6] = default_units().to_radians(np.array([0.0, 0, 0, 0, 0, 0]))
     assert sim.commanded() == pytest.approx(ZERO_POSE)
-    sim.hold(2.0)  # holds what is in ctrl, not the earlier target
-    assert sim.pose()["shoulder_lift"] == pytest.approx(0.0, abs=1.0)
+    sim.hold(2.0)  # holds what is in ctrl, not the earlier target (-98°)
+    # ... sagging under the arm's weight by a few degrees (sts3215, P = 16), not at -98°
+    assert sim.pose()["shoulder_lift"] == pytest.approx(0.0, abs=5.0)
     fresh = mujoco.MjData(sim.model)  # never commanded: targets untouched
     from so101sim.sim.simulation import Simulation
 
@@ -355,7 +361,7 @@ def test_a_viewer_without_sync_is_refused_before_anything_moves(sim):
 def test_tip_moves_in_a_straight_line_and_report_the_tracking():
     from so101sim.kinematics import line_deviation
 
-    sim = Simulation(initial_pose=ZERO_POSE)
+    sim = Simulation(initial_pose=ZERO_POSE, arm="official")  # the planner, on ideal servos
     start = sim.tip().position
     goal = (0.25, 0.05, 0.10)
     r = sim.move_to(tip=goal, pitch=-60, duration=2.0, profile="minimum_jerk", trace=True)
@@ -381,7 +387,7 @@ def test_a_tip_out_of_reach_raises_before_anything_moves():
 def test_a_joint_space_tip_move_ends_at_the_tip_and_paths_are_checked():
     from so101sim.errors import DurationError, SettingError
 
-    sim = Simulation()
+    sim = Simulation(arm="official")  # the planner, on ideal servos (sts3215 sags ~1 cm here)
     sim.move_to(tip=(0.2, -0.1, 0.05), pitch=-90, duration=2.0, path="joint", profile="limited")
     sim.hold(0.5)
     assert np.linalg.norm(sim.tip().position - (0.2, -0.1, 0.05)) < 0.005
@@ -428,7 +434,8 @@ def test_a_never_commanded_arm_holds_its_pose_with_nothing_watching():
     sim = Simulation()
     before = sim.pose()
     sim.step(1000, trace=False)
-    assert sim.pose() == pytest.approx(before, abs=1.0)
+    # it holds: the default servo (P = 16) settles 1.4° under the folded arm's weight
+    assert sim.pose() == pytest.approx(before, abs=2.0)
     assert sim.commanded() == pytest.approx(before, abs=1e-6)
 
 

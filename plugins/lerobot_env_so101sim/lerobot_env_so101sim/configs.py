@@ -39,6 +39,7 @@ from lerobot.envs.configs import EnvConfig
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
 from so101sim.errors import SettingError
+from so101sim.model.arm import load_profile
 from so101sim.recording import QUALITY_CHOICES
 from so101sim.scenes import PRESET_CAMERAS, SCENE_PRESETS
 from so101sim.units import JOINT_NAMES
@@ -86,6 +87,10 @@ class SO101SimEnvConfig(EnvConfig):
     """Domain randomisation per episode: ``none``, ``light`` or ``full`` (so101sim's presets,
     ``gym.make(..., randomize=...)``)."""
     render_mode: str = "rgb_array"
+    arm: str | None = None
+    """The arm profile (``--env.arm=``): ``sts3215`` (None: the default), ``official``,
+    ``sts3215-12v`` or a TOML file; use the one the policy's dataset was recorded with
+    (``--robot.arm``)."""
     visualization_height: int = 480
     visualization_width: int = 640
     """Size of the frames of lerobot-eval's videos (the ``front`` camera)."""
@@ -116,6 +121,8 @@ class SO101SimEnvConfig(EnvConfig):
         check_choice(self.reward, "reward", ("dense", "sparse"))
         check_choice(self.randomize, "randomize", ("none", "light", "full"))
         check_choice(self.render_mode, "render_mode", ("rgb_array",))
+        if self.arm is not None:
+            load_profile(self.arm)  # an unknown profile fails now, naming the known ones
         self._fill_defaults()
         path = self.policy_path if self.policy_path is not None else _policy_path_argument()
         if path:
@@ -255,6 +262,8 @@ class SO101SimEnvConfig(EnvConfig):
         }
         if self.randomize != "none":
             kwargs["randomize"] = self.randomize
+        if self.arm is not None:
+            kwargs["arm"] = self.arm
         if self.episode_length is not None:
             kwargs["episode_seconds"] = check_range(
                 self.episode_length / self.fps, "episode_length / fps", low=0.0, high=3600.0

@@ -76,6 +76,20 @@ def test_bad_values_fail_when_the_config_is_made():
     assert isinstance(info.value.__cause__, SettingError)
 
 
+def test_env_arm_goes_to_the_environment_and_an_unknown_one_fails_at_once():
+    assert "arm" not in SO101SimPickCubeEnv().gym_kwargs  # the default profile
+    cfg = parse_env("type=so101sim_pick_cube", "arm=official")
+    assert cfg.gym_kwargs["arm"] == "official"
+    env = gym.make(cfg.gym_id, **{**cfg.gym_kwargs, "cameras": []})
+    try:
+        assert env.unwrapped.arm.name == "official"
+        assert env.unwrapped.model.actuator_gainprm[0, 0] > 900
+    finally:
+        env.close()
+    with pytest.raises(SettingError, match="official, sts3215, sts3215-12v"):
+        SO101SimPickCubeEnv(arm="sts9999")
+
+
 def test_make_env_gives_the_observations_lerobot_maps_to_the_policys_inputs():
     cfg = SO101SimPickCubeEnv(**SMALL, episode_length=5)
     vec = make_env(cfg, n_envs=1)["so101sim_pick_cube"][0]

@@ -102,6 +102,11 @@ class SO101SimConfig(RobotConfig):
     speed: float = 1.0
     viewer: bool = False
     model: str | None = None
+    arm: str | None = None
+    """The arm profile (``--robot.arm=``): the servos' model, ``sts3215`` (None: the default,
+    fitted on a real STS3215: it sags under load and lags as the real arm does), ``official``
+    (the vendored model's ideal position actuators), ``sts3215-12v``, or a TOML file written
+    by ``so101sim fit``."""
     scene: str | None = None
     """A table-top scene preset (``pick_cube``, ``cube_to_bowl``): its table and objects are
     added to the simulated arm's scene. None: the arm alone."""
@@ -151,6 +156,7 @@ class SO101SimConfig(RobotConfig):
             use_degrees=self.use_degrees,
             cameras={n: c.sim_settings() for n, c in self.cameras.items()},  # type: ignore[attr-defined]
             model=self.model,
+            arm=self.arm,
             scene=self.scene,
             viewer=self.viewer,
             mode=self.mode,

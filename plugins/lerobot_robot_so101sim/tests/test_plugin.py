@@ -161,6 +161,19 @@ def test_randomize_is_passed_to_the_follower_and_needs_a_scene():
     assert "needs a scene" in str(info.value.__cause__)
 
 
+def test_robot_arm_picks_the_servos_model_and_names_the_profiles_when_wrong():
+    robot = make_robot_from_config(parse_robot("type=so101_sim", "arm=official"))
+    model = robot.follower._sim.model
+    assert model.actuator_gainprm[0, 0] > 900  # the vendored ideal actuator, kp 998
+    default = make_robot_from_config(parse_robot("type=so101_sim")).follower._sim.model
+    assert -default.actuator_biasprm[0, 1] < 20  # sts3215: kp 11 N·m/rad at 7.4 V
+    assert default.actuator_delay[0] > 0.02
+    with pytest.raises(draccus.utils.ParsingError) as info:
+        parse_robot("type=so101_sim", "arm=sts9999")
+    assert isinstance(info.value.__cause__, sim_errors.RobotConfigError)
+    assert "official, sts3215, sts3215-12v" in str(info.value.__cause__)
+
+
 # ---------------------------------------------------------------------------- actions
 def test_actions_accept_0d_tensors_and_numpy_scalars_and_ignore_other_keys():
     with lockstep() as robot:

@@ -80,7 +80,7 @@ def cmd_check(args: argparse.Namespace) -> int:
         )
     with output_hint(args.motion, "so101sim run "):
         report = check_motion_file(
-            motion, model=args.model, thresholds=thresholds, strict=args.strict
+            motion, model=args.model, thresholds=thresholds, strict=args.strict, arm=args.arm
         )
     print(json.dumps(report.to_dict(), indent=2) if args.json else format_report(report))
     return 0 if report.passed else 1
@@ -92,6 +92,7 @@ def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> i
     from ..preflight import robust as pv  # imports MuJoCo
 
     settings = {"model": args.model, "thresholds": thresholds, "strict": args.strict}
+    settings["arm"] = args.arm
     seed = 0 if args.seed is None else args.seed
     if args.plot is not None:
         pv.check_plot_path(args.plot, force=args.force)  # before anything runs

@@ -15,10 +15,11 @@ from .tools import add_video_options
 SubParsers = Any  # argparse's private _SubParsersAction
 
 
-def add_demo_command(sub: SubParsers) -> None:
+def add_demo_command(sub: SubParsers, *, arm: argparse.ArgumentParser) -> None:
     """Add ``demo`` to the parser's subcommands."""
     p = sub.add_parser(
         "demo",
+        parents=[arm],
         help="run a task's scripted expert once (pick_cube, cube_to_bowl), optionally on video",
         description=(
             "Runs the scripted expert of TASK for one episode from the start poses drawn from "
@@ -90,6 +91,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         video=settings,
         force=args.force,
         viewer=viewer.use,
+        arm=args.arm,
     )
     if result.success_time is not None:
         status = f"success at t = {result.success_time:.2f} s"

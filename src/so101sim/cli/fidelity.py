@@ -10,6 +10,8 @@ import argparse
 import json
 import sys
 
+from .output import add_arm_option
+
 SubParsers = argparse._SubParsersAction
 
 
@@ -62,12 +64,7 @@ def add_parsers(sub: SubParsers) -> None:
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--episodes", help="episodes to use, e.g. 0-1,3 (default: all)")
-    p.add_argument(
-        "--arm",
-        default=None,
-        help="arm profile: official, sts3215, sts3215-12v or a TOML file (compare: default "
-        "official; fit: the starting profile, default sts3215)",
-    )
+    add_arm_option(p)
     p.add_argument(
         "--calibration",
         help="LeRobot calibration JSON of the follower, for a range-mode (-100..100) dataset",
@@ -142,7 +139,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     episodes = parse_episodes(args.episodes) if args.episodes else None
     result = fit(
         args.logs,
-        arm=args.arm or "sts3215",
+        arm=args.arm,
         episodes=episodes,
         calibration=args.calibration,
         units=args.units,

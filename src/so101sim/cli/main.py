@@ -33,7 +33,7 @@ from typing import Any
 from .. import __version__
 from ..errors import So101SimError
 from .commands import cmd_check, cmd_model_path, cmd_pose, cmd_teleop, cmd_view
-from .output import SIGNALS, _say, _signal_name
+from .output import SIGNALS, _say, _signal_name, add_arm_option
 from .run import cmd_hold, cmd_run
 from .studio import add_web_options
 from .tools import (
@@ -112,9 +112,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="refuse 'limited' moves shorter than the joint limits allow (default: stretch them)",
     )
     recording = _recording_parent()
+    arm = argparse.ArgumentParser(add_help=False)
+    add_arm_option(arm)
 
     summary = "run a motion file (default: the lab motion)"
-    p = _command(sub, "run", cmd_run, summary, model, headless, speed, strict, recording)
+    p = _command(sub, "run", cmd_run, summary, model, arm, headless, speed, strict, recording)
     add_web_options(p)
     p.add_argument(
         "motion",
@@ -122,7 +124,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="a TOML motion file (default: the shipped lab motion, rest -> zeros -> rest)",
     )
     summary = "hold the starting (rest) pose, as the lab's first script"
-    p = _command(sub, "hold", cmd_hold, summary, model, headless, speed, recording)
+    p = _command(sub, "hold", cmd_hold, summary, model, arm, headless, speed, recording)
     add_web_options(p)
     p.add_argument("--duration", type=float, default=30.0, help="seconds to hold (default 30)")
     add_web_options(
@@ -133,13 +135,13 @@ def build_parser() -> argparse.ArgumentParser:
     summary = "pose the arm in the viewer; prints each pose as a Python dict and as TOML"
     add_web_options(_command(sub, "pose", cmd_pose, summary, model), linger=False)
     summary = "simulate a motion file headless and judge it before hardware: PASS/FAIL"
-    _add_check_options(_command(sub, "check", cmd_check, summary, model, strict))
+    _add_check_options(_command(sub, "check", cmd_check, summary, model, arm, strict))
     summary = "mirror a LeRobot SO-101 leader arm on the sim in real time (Ctrl-C stops)"
     _add_teleop_options(_command(sub, "teleop", cmd_teleop, summary, model, headless))
-    add_commands(sub, recording=recording, model=model)
+    add_commands(sub, recording=recording, model=model, arm=arm)
     from .demo import add_demo_command  # so101sim demo
 
-    add_demo_command(sub)
+    add_demo_command(sub, arm=arm)
     from .fidelity import add_parsers as add_fidelity_commands  # so101sim compare, fit
 
     add_fidelity_commands(sub)
@@ -154,7 +156,7 @@ _THRESHOLD_OPTIONS = (  # check's thresholds: (flag, default, help)
     ("--max-saturation", 0.03, "seconds the effort may stay above --max-effort"),
     (
         "--max-tracking-error",
-        5.0,
+        15.0,
         "largest allowed |commanded - measured|, degrees (gripper: 0-100 units)",
     ),
     ("--limit-margin", 1.0, "closest a body joint may come to a limit, degrees"),

@@ -31,6 +31,19 @@ if TYPE_CHECKING:
 
 
 # ---------------------------------------------------------------------------- printing
+ARM_HELP = (
+    "arm profile, the servos' model: sts3215 (default: fitted on a real STS3215, it sags and "
+    "lags as the real arm does), official (the vendored ideal position actuators), "
+    "sts3215-12v, or a TOML file written by `so101sim fit`"
+)
+
+
+def add_arm_option(parser: Any) -> None:
+    """``--arm NAME|FILE`` (every command that simulates the arm; default: the default
+    profile). The value is resolved by :func:`so101sim.model.arm.load_profile`."""
+    parser.add_argument("--arm", metavar="NAME|FILE", default=None, help=ARM_HELP)
+
+
 def format_segment(seg: SegmentResult) -> str:
     """A phase's report: target, reached pose, largest tracking error."""
     from ..units import format_pose, format_value

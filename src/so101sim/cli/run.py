@@ -62,6 +62,7 @@ def _run(
             segments,
             start=start,
             model=web.model if web else (model if model is not None else args.model),
+            arm=args.arm,
             speed=args.speed,
             headless=args.headless or web is not None,
             strict=strict,
@@ -86,7 +87,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .runplan import run_model
 
     # the run's model first: the loader plans the tip moves on it, and the run reuses them
-    model = run_model(args.model, headless=args.headless, outputs=_outputs(args))
+    model = run_model(args.model, headless=args.headless, outputs=_outputs(args), arm=args.arm)
     with output_hint(args.motion):
         motion = load_motion(
             args.motion if args.motion is not None else lab_motion_path(), model=model

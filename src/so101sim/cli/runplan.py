@@ -120,15 +120,17 @@ def run_model(
     *,
     headless: bool = False,
     outputs: Outputs | None = None,
+    arm: object = None,
 ) -> mujoco.MjModel:
-    """The model a run uses: ``model`` loaded (the shipped one by default), the physics-only
+    """The model a run uses: ``model`` loaded (the shipped one by default) with the arm profile
+    ``arm`` (None: the default, see :func:`~so101sim.model.load_model`), the physics-only
     copy when nothing will draw it (no viewer, no video: the same physics, a fifth of the
     memory). Load it first and pass it to :func:`~so101sim.motion.file.load_motion` and
     :func:`prepare_run`, so the tip moves the loader plans are the run's own."""
     if isinstance(model, mujoco.MjModel):
         return model
     draws = choose_viewer(headless).use or (outputs is not None and outputs.video is not None)
-    return load_model(model, physics_only=not draws)
+    return load_model(model, physics_only=not draws, arm=arm)
 
 
 def prepare_run(
@@ -141,6 +143,7 @@ def prepare_run(
     strict: bool = False,
     outputs: Outputs | None = None,
     known: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
+    arm: object = None,
 ) -> PreparedRun:
     """Check a run of ``segments`` from ``start`` and make its recorder, opening nothing. The
     motion is planned here, once (:func:`~so101sim.motion.plan.plan_segments`): the video's
@@ -152,7 +155,7 @@ def prepare_run(
             ``strict``) a ``limited`` move too short for the joint limits.
     """
     viewer = choose_viewer(headless)
-    loaded = run_model(model, headless=headless, outputs=outputs)
+    loaded = run_model(model, headless=headless, outputs=outputs, arm=arm)
     if strict:
         check_strict(loaded, segments, start)
     pacer = Pacer(speed)  # checks the speed before anything opens

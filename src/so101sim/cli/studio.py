@@ -152,7 +152,7 @@ class WebRun:
         self.linger = check_linger(args.linger)
         require_viser()
         ensure_free(args.host, check_port(args.port))  # before anything runs
-        self.model = load_model(args.model)
+        self.model = load_model(args.model, arm=getattr(args, "arm", None))
         self.studio: Studio | None = None
 
     def observers(self, run: Any) -> list[Any]:

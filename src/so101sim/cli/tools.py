@@ -118,12 +118,16 @@ def camera_options(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def add_commands(
-    sub: SubParsers, *, recording: argparse.ArgumentParser, model: argparse.ArgumentParser
+    sub: SubParsers,
+    *,
+    recording: argparse.ArgumentParser,
+    model: argparse.ArgumentParser,
+    arm: argparse.ArgumentParser,
 ) -> None:
     """Add ``record``, ``workspace``, ``cache`` and ``examples`` to the parser's subcommands."""
     p = sub.add_parser(
         "record",
-        parents=[recording],
+        parents=[recording, arm],
         help="run your own simulation script headless and record it to a video",
         description=(
             "Runs SCRIPT unchanged: its mujoco.viewer.launch_passive(m, d) records instead of "
@@ -184,6 +188,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     video |= camera_options(args)
     VideoSettings(**video).validated()  # a bad setting stops before the script runs
     options = {**video, "plot": args.plot, "log": args.log, "force": args.force}
+    options["arm"] = args.arm
     if args.web:  # the script live in a browser (cli/studio.py)
         from .studio import record_web
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -33,6 +34,7 @@ from gymnasium import spaces
 
 from ..errors import ClosedError, SettingError, ViewerError
 from ..exitgate import gated
+from ..model.arm import load_profile
 from ..recording import FREE_CAMERA, QUALITY_CHOICES, FrameRenderer, VideoSettings
 from ..recording.settings import check_quality
 from ..robot.config import GRIPPER_TORQUE_FRACTION
@@ -110,6 +112,7 @@ class So101TaskEnv(SceneState, gym.Env):
         terminate_on_success: bool = True,
         initial_pose: Pose | None = None,
         randomize: str | Randomization | dict[str, Any] | None = None,
+        arm: str | Path | None = None,
     ) -> None:
         if render_mode is not None:
             check_choice(render_mode, "render mode", RENDER_MODES)
@@ -137,13 +140,16 @@ class So101TaskEnv(SceneState, gym.Env):
         fraction = check_range(
             gripper_torque_fraction, "gripper_torque_fraction", low=0.0, high=1.0, low_open=True
         )
+        self.arm = load_profile(arm)  # the servos' model: name, TOML file or None (default)
         self.scene = preset_scene(self.scene_name, cameras=self._camera_specs())
         self.randomize = randomization(randomize)
         n = self.randomize.distractors
         self.model = build_scene(
-            self.scene, extra=(lambda spec: add_distractors(spec, n)) if n else None
+            self.scene,
+            arm=self.arm,
+            extra=(lambda spec: add_distractors(spec, n)) if n else None,
         )
-        limit_gripper(self.model, fraction)
+        limit_gripper(self.model, fraction, self.arm)
         self.sim = Simulation(self.model, initial_pose=initial_pose or STARTING_POSE)
         self._period_steps = 1.0 / (hz * self.sim.timestep)  # physics steps per env step
         self.substeps = max(1, round(self._period_steps))  # nominal (exact at 25 Hz)

@@ -30,6 +30,7 @@ from .grasp import GRASP_Z_M, LIFT_Z_M
 from .planning import (
     CLOSED_GRIPPER,
     OPEN_GRIPPER,
+    ThroughSag,
     gripper_path,
     joint_path,
     line_path,
@@ -42,6 +43,11 @@ from .tasks import CubeToBowlTask, PickCubeTask
 log = logging.getLogger(__name__)
 
 MAX_ATTEMPTS = 3
+SAG_PHASES = frozenset({"lift", "check", "carry", "lower", "release", "retreat", "hold"})
+"""The phases commanded through the servos' sag (:class:`~so101sim.envs.planning.ThroughSag`),
+from the lift on: the default arm (a real STS3215 at P = 16) holds the cube a centimetre and
+more below the planned lift. (Not before the grasp: the jaws come down on the cube as planned
+without it, and aiming higher there while the arm still lags put a jaw on the cube's top.)"""
 APPROACH_Z_M = 0.06
 """The tip's height above an object before coming down on it (metres)."""
 PHASE_SECONDS = {
@@ -77,6 +83,7 @@ class ScriptedExpert:
                 "simulation (so101sim.envs.tasks.sim_task)"
             )
         self.env: Any = inner  # So101TaskEnv or SimTask: control_hz, actions, the scene state
+        self._through_sag = ThroughSag(inner.model)
         self.reset()
 
     def reset(self) -> None:
@@ -108,7 +115,9 @@ class ScriptedExpert:
             if self._queue
             else (self._last if self._last is not None else commanded)
         )
-        self._last = target
+        self._last = target  # where the arm should be; the plan goes on from there
+        if self.phase in SAG_PHASES:  # holding the cube up: aim where the sagging arm ends
+            target = self._through_sag(target)
         return self.env.actions.action_for(target, commanded)
 
     # -- planning

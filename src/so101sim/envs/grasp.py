@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 import mujoco
 import numpy as np
 
+from ..model.arm import gripper_full_range, load_profile
 from ..model.load import arm_index
 from ..robot.config import GRIPPER_TORQUE_FRACTION
 from ..scenes import (
@@ -40,7 +41,7 @@ from ..scenes import (
 from ..sim.simulation import Observer, Simulation
 from ..units import GRIPPER_INDEX
 from ..validation import check_count, check_duration, check_range
-from .planning import CLOSED_GRIPPER, OPEN_GRIPPER, top_grasp
+from .planning import CLOSED_GRIPPER, OPEN_GRIPPER, ThroughSag, top_grasp
 
 GRASP_LIMITS = {"slip_mm": 5.0, "penetration_mm": 1.0, "disturbed_mm": 1.0, "lifted_mm": 30.0}
 """What a good grasp keeps to: slip and penetration at most, disturbance at most, lift at
@@ -132,11 +133,14 @@ def cube_scene(
     return TableScene(objects=(cube,), contact=contact or ContactSettings(), name="grasp")
 
 
-def limit_gripper(model: mujoco.MjModel, fraction: float = GRIPPER_TORQUE_FRACTION) -> None:
-    """Bound the gripper's force as the real gripper's current limit does (a share of the
-    model's force range; LeRobot writes 50 %)."""
+def limit_gripper(
+    model: mujoco.MjModel, fraction: float = GRIPPER_TORQUE_FRACTION, arm: object = None
+) -> None:
+    """Bound the gripper's force as the real gripper's torque limit does: ``fraction`` of the
+    arm profile ``arm``'s gripper torque limit (LeRobot writes 50 %; None: the default
+    profile, which ``model`` must have been built with)."""
     a = arm_index(model).actuator[GRIPPER_INDEX]
-    model.actuator_forcerange[a] = model.actuator_forcerange[a] * fraction
+    model.actuator_forcerange[a] = gripper_full_range(arm) * fraction
 
 
 def _relative(d: mujoco.MjData, site: int, pos: np.ndarray) -> np.ndarray:
@@ -153,13 +157,15 @@ def grasp_trial(
     hold: float = 3.0,
     contact: ContactSettings | None = None,
     torque_fraction: float = GRIPPER_TORQUE_FRACTION,
+    arm: object = None,
 ) -> GraspTrial:
     """Pick a 2.5 cm cube of ``mass`` kg standing at (x, y), turned ``yaw`` degrees, hold it
     up for ``hold`` s and measure it (see the module's text)."""
     hold = check_duration(hold, "hold", maximum=600.0)
     check_range(mass, "mass", low=0.001, high=1.0, unit=" kg")
-    model = build_scene(cube_scene(x, y, yaw, mass, contact))
-    limit_gripper(model, torque_fraction)
+    profile = load_profile(arm)  # type: ignore[arg-type]
+    model = build_scene(cube_scene(x, y, yaw, mass, contact), arm=profile)
+    limit_gripper(model, torque_fraction, profile)
     sim = Simulation(model)
     watch = ContactWatch(model, "cube")
     sim.observers.append(watch)
@@ -177,13 +183,13 @@ def grasp_trial(
     disturbed = np.linalg.norm(object_pose(model, sim.data, "cube")[:3] - start)
     sim.move_to({**sim.commanded(), "gripper": CLOSED_GRIPPER}, 0.5)
     sim.hold(0.2)
-    sim.move_to(
-        tip=grasp.at_height(LIFT_Z_M),
-        pitch=-90,
-        roll=grasp.roll,
-        duration=1.0,
-        profile="minimum_jerk",
+    # the lift, commanded through the servos' sag (as the experts do): the default arm (a real
+    # STS3215 at P = 16) would hold the cube a centimetre below the planned height
+    _, rows = sim.plan_tip_move(
+        grasp.at_height(LIFT_Z_M), 1.0, pitch=-90, roll=grasp.roll, profile="minimum_jerk"
     )
+    aim = ThroughSag(model)
+    sim.advance(np.array([aim(row) for row in rows]), keep_trace=False)
     sim.hold(0.2)
     site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "gripperframe")
     held0 = _relative(sim.data, site, object_pose(model, sim.data, "cube")[:3])
@@ -233,11 +239,12 @@ def rest_trial(
     *,
     duration: float = 60.0,
     contact: ContactSettings | None = None,
+    arm: object = None,
 ) -> RestTrial:
     """Leave a 2.5 cm cube on the table for ``duration`` s (the arm holding its rest pose) and
     measure, every 50 ms, how far it drifted sideways and up or down from where it was put."""
     duration = check_duration(duration, "duration", maximum=3600.0)
-    model = build_scene(cube_scene(x, y, yaw, mass, contact))
+    model = build_scene(cube_scene(x, y, yaw, mass, contact), arm=arm)
     sim = Simulation(model)
     p0 = object_pose(model, sim.data, "cube")
     watch = _PoseWatch(model, p0)

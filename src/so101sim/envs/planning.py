@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from ..kinematics import plan_line, solve_ik, tip_pose
+from ..model.load import arm_index, arm_units
 from ..sim.profiles import fractions
 from ..units import GRIPPER_INDEX
 
@@ -118,3 +119,38 @@ def gripper_path(start: np.ndarray, value: float, n: int) -> np.ndarray:
     goal = np.asarray(start, dtype=float).copy()
     goal[GRIPPER_INDEX] = value
     return joint_path(start, goal, n)
+
+
+class ThroughSag:
+    """Joint targets that end where they are meant to on servos that sag under the arm's
+    weight: each body joint's target moved by the gravity torque on it at that pose over its
+    servo's stiffness (``-actuator_biasprm[1]``, N·m/rad), as a person commanding a real
+    P = 16 arm learns to aim a little high. On the default arm profile (``sts3215``, 11 N·m/rad)
+    it is a few degrees; on the vendored ideal actuators (998 N·m/rad) next to nothing. The
+    gripper is left as asked. Coulomb friction (the servo's dead band, about 1°) is not
+    compensated: it has no one sign.
+    """
+
+    def __init__(self, model: mujoco.MjModel) -> None:
+        self.model = model
+        self.data = mujoco.MjData(model)  # scratch: the pose is written, the physics not stepped
+        idx = arm_index(model)
+        self.units = arm_units(model)
+        self.qpos, self.dof = idx.qpos, idx.dof
+        self.kp = -model.actuator_biasprm[idx.actuator, 1].copy()
+        self.body = (np.arange(len(idx.qpos)) != GRIPPER_INDEX) & (self.kp > 0)
+        self._force = np.zeros(model.nv)
+
+    def __call__(self, target: np.ndarray) -> np.ndarray:
+        """``target`` (arm units, six values) as the command that holds the arm there."""
+        q = self.units.to_radians(np.asarray(target, dtype=float))
+        m, d = self.model, self.data
+        d.qpos[self.qpos] = q
+        d.qvel[:] = 0.0
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        mujoco.mj_rne(m, d, 0, self._force)  # gravity alone: the joints are still
+        kp = np.where(self.body, self.kp, 1.0)
+        shift = np.where(self.body, self._force[self.dof] / kp, 0.0)
+        lower, upper = self.units.limits
+        return np.clip(self.units.from_radians(q + shift), lower, upper)

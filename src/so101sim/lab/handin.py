@@ -24,6 +24,7 @@ a student's script) share the recording viewer and its output checks, and read b
 from __future__ import annotations
 
 import contextlib
+import copy
 import os
 import runpy
 import sys
@@ -358,6 +359,36 @@ def _script_environment(path: Path, args: Sequence[str]) -> Iterator[None]:
         sys.argv, sys.path[:] = saved_argv, saved_path
 
 
+@contextlib.contextmanager
+def _arm_models(arm: object) -> Iterator[None]:
+    """With an arm profile (``so101sim record --arm``): the script's models get it, both those
+    it loads through so101sim (``load_model``, ``Simulation``: the profile is the default while
+    it runs) and those it compiles with ``mujoco.MjModel.from_xml_path`` (as the lab handout
+    does: a private copy of ``load_model(path, arm=...)``). None: the script's own models."""
+    if arm is None:
+        yield
+        return
+    from ..model.arm import default_profile, profile_key
+    from ..model.load import load_model
+
+    original = mujoco.MjModel.from_xml_path
+
+    def from_xml_path(filename: str, assets: Any = None) -> mujoco.MjModel:
+        if assets:
+            return original(filename, assets)
+        return copy.copy(load_model(filename, arm=profile))
+
+    with default_profile(arm) as profile:  # type: ignore[arg-type]
+        if not profile_key(profile):  # official: the files' own actuators, as they load
+            yield
+            return
+        mujoco.MjModel.from_xml_path = staticmethod(from_xml_path)  # type: ignore[method-assign]
+        try:
+            yield
+        finally:
+            mujoco.MjModel.from_xml_path = original  # type: ignore[method-assign]
+
+
 def _check_outputs(video: PathArg, options: dict[str, Any]) -> None:
     """The outputs of a script run, checked as :class:`Recorder` will check them."""
     from ..recording.paths import check_distinct
@@ -392,6 +423,8 @@ def run_script(
     exceptions pass through (an exception propagates after the files are finished); its
     exit status is returned.
 
+    ``arm`` (an option): an arm profile for the models the script loads (see
+    :func:`_arm_models`); None leaves them as the script makes them.
     ``live``: a function ``live(m, d)`` returning a viewer (``sync()``, and an
     :class:`~so101sim.sim.Observer`) shown alongside, e.g. the web studio's
     :class:`~so101sim.studio.live.StudioViewer`; the script then runs on the wall clock (the
@@ -406,12 +439,18 @@ def run_script(
     # before the script runs (the recording opens only when the script opens its viewer)
     path = check_input_file(script, "script", expected="a Python file (the script to run)")
     _check_outputs(video, options)
+    arm = options.pop("arm", None)
     clock = SimClock()
     session = _Session(clock, video, options, live)
     status, message = 0, ""
     clocked = simulated_time(clock) if live is None else contextlib.nullcontext()
     try:
-        with _script_environment(path, args), _patched_viewer(session), clocked:
+        with (
+            _script_environment(path, args),
+            _arm_models(arm),
+            _patched_viewer(session),
+            clocked,
+        ):
             try:
                 runpy.run_path(str(path), run_name="__main__")
             except SystemExit as exc:

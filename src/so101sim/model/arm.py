@@ -39,9 +39,13 @@ are one format and read best side by side (a field added in one place needs the 
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import math
 import tomllib
+from collections.abc import Iterator
 from dataclasses import dataclass, field, fields, replace
+from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -59,8 +63,12 @@ __all__ = [
     "ProfileError",
     "ServoParams",
     "apply_profile",
+    "default_profile",
     "fill_delay_history",
+    "gripper_full_range",
     "load_profile",
+    "profile_from_toml",
+    "profile_key",
     "profile_names",
     "profile_toml",
 ]
@@ -70,8 +78,14 @@ STALL_TORQUE_NM: dict[float, float] = {7.4: 19.5 * 0.0980665, 12.0: 30.0 * 0.098
 and the 12 V version (C018, 30 kg·cm). Both run at about the same no-load speed (0.222 s/60°),
 so their back-EMF damping (stall torque / no-load speed) scales the same way."""
 
-PROFILE_DEFAULT = "official"
-"""The profile the project loads when none is named (the lead decides when this changes)."""
+PROFILE_DEFAULT = "sts3215"
+"""The profile the project loads when none is named: the one that predicts a real STS3215 best
+(validation runs of the servo bench: 0.0153 rad mean per-run error against 0.211 for
+``official``; docs/fidelity.md). ``official`` (the vendored actuators) is one option away."""
+
+OFFICIAL = "official"
+"""The profile of the vendored model's own actuators: a model loaded with it is the file as it
+is."""
 
 
 class ProfileError(SettingError):
@@ -228,6 +242,8 @@ def load_profile(profile: str | Path | ArmProfile | None = None) -> ArmProfile:
     if isinstance(profile, ArmProfile):
         return profile
     if profile is None:
+        if _override:
+            return _override[-1]
         profile = PROFILE_DEFAULT
     text = str(profile)
     if isinstance(profile, Path) or text.endswith(".toml") or "/" in text or "\\" in text:
@@ -244,6 +260,34 @@ def load_profile(profile: str | Path | ArmProfile | None = None) -> ArmProfile:
             "or the path of a TOML file"
         )
     return _from_file(_arms_dir() / f"{text}.toml", set())
+
+
+def profile_from_toml(text: str, where: str = "arm profile") -> ArmProfile:
+    """A profile from TOML text (e.g. :func:`profile_toml`'s), checked as a file is.
+
+    Raises:
+        ProfileError: invalid TOML, an unknown field or a value out of its bounds.
+    """
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ProfileError(f"{where} is not valid TOML ({exc})") from exc
+    return _from_dict(raw, where, set())
+
+
+_override: list[ArmProfile] = []
+
+
+@contextlib.contextmanager
+def default_profile(profile: str | Path | ArmProfile) -> Iterator[ArmProfile]:
+    """While the block runs, ``profile`` is what None means (for ``so101sim record --arm``,
+    which runs a script that loads its own models). Not for threads that outlive the block."""
+    prof = load_profile(profile)
+    _override.append(prof)
+    try:
+        yield prof
+    finally:
+        _override.remove(prof)
 
 
 def _from_file(path: Path, seen: set[str]) -> ArmProfile:
@@ -329,6 +373,36 @@ def profile_toml(profile: ArmProfile, *, comment: str = "") -> str:
             lines += ["", f"[joints.{joint}]"]
             lines += [f"{k} = {float(v)!r}" for k, v in values.items()]
     return "\n".join(lines) + "\n"
+
+
+def profile_key(profile: str | Path | ArmProfile | None) -> str:
+    """A short key naming what ``profile`` does to a model: ``""`` when it is the vendored
+    actuators (the shipped ``official`` values: the model file as it is), else ``"arm-"`` and
+    a digest of its values (the model caches' key)."""
+    prof = load_profile(profile)
+    text = _values_toml(prof)
+    if text == _official_values():
+        return ""
+    return "arm-" + hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _values_toml(profile: ArmProfile) -> str:
+    """The profile's values as the model gets them (name, description and source aside)."""
+    return profile_toml(replace(profile, name="", description="", source=""))
+
+
+@lru_cache(maxsize=1)
+def _official_values() -> str:
+    return _values_toml(load_profile(OFFICIAL))
+
+
+def gripper_full_range(profile: str | Path | ArmProfile | None) -> np.ndarray:
+    """``[-limit, limit]`` (N·m): the gripper servo's torque limit at the profile's supply,
+    before a firmware torque limit (the profile's ``torque_scale``). The follower and the
+    environments give the gripper their ``gripper_torque_fraction`` of it (LeRobot's
+    ``Max_Torque_Limit`` 500 of 1000), replacing the profile's own fraction."""
+    p = load_profile(profile).joint("gripper")
+    return np.array([-p.torque_limit, p.torque_limit])
 
 
 def _q(text: str) -> str:

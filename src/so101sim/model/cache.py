@@ -143,7 +143,7 @@ def _write_with(entry: Path, write: Callable[[str], object]) -> None:
             os.unlink(tmp)
 
 
-def _read(entry: Path, source: Path) -> mujoco.MjModel | None:
+def _read(entry: Path, source: Path, gains: bool = True) -> mujoco.MjModel | None:
     """The model in ``entry`` if it is whole (its digest) and is the model of ``source``; else
     None, the entry deleted and one warning logged. None without a word when there is none."""
     if not entry.is_file():
@@ -160,7 +160,7 @@ def _read(entry: Path, source: Path) -> mujoco.MjModel | None:
                 # an entry is only ever replaced whole (renamed into place): what MuJoCo reads
                 # here is what was hashed, or another whole entry of the same key
                 model = mujoco.MjModel.from_binary_path(str(entry))
-                problem = _foreign(model, source)
+                problem = _foreign(model, source, gains)
             except (ValueError, OSError, mujoco.FatalError) as exc:
                 problem = f"does not load ({exc})"
             if problem is None:
@@ -172,10 +172,10 @@ def _read(entry: Path, source: Path) -> mujoco.MjModel | None:
     return None
 
 
-def _foreign(model: mujoco.MjModel, source: Path) -> str | None:
+def _foreign(model: mujoco.MjModel, source: Path, gains: bool = True) -> str | None:
     """How ``model`` differs from the model file ``source`` (parsed, not compiled): its joints
-    (names, ranges), actuators (names, gains) or options (timestep, gravity); None if it
-    does not."""
+    (names, ranges), actuators (names, and gains unless ``gains`` is False: an arm profile
+    replaces them by design) or options (timestep, gravity); None if it does not."""
     try:
         spec = mujoco.MjSpec.from_file(str(source))
     except (ValueError, OSError, mujoco.FatalError) as exc:
@@ -196,7 +196,7 @@ def _foreign(model: mujoco.MjModel, source: Path) -> str | None:
     names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) for i in range(model.nu)]
     if sorted(map(str, names)) != sorted(actuators):
         return "is another model (other actuators)"
-    for i, name in enumerate(names):
+    for i, name in enumerate(names if gains else ()):
         if not np.array_equal(model.actuator_gainprm[i], actuators[str(name)]):
             return f"is another model (the gains of actuator {name!r})"
     if model.opt.timestep != spec.option.timestep or not np.array_equal(
@@ -206,12 +206,18 @@ def _foreign(model: mujoco.MjModel, source: Path) -> str | None:
     return None
 
 
+_ARM_KEY = "arm-"
+"""In a variant, the mark of an arm profile's key (:func:`so101sim.model.arm.profile_key`): the
+actuators' gains are the profile's, not the file's."""
+
+
 def load_or_compile(
     path: Path,
     compile_fn: Callable[[], mujoco.MjModel],
     *,
     variant: str = "",
     physics_only: bool = False,
+    spec_fn: Callable[[], mujoco.MjSpec] | None = None,
 ) -> mujoco.MjModel:
     """The model compiled from ``path``: from the cache when an entry for its current content
     exists, else ``compile_fn()`` (then saved to the cache when possible).
@@ -219,16 +225,17 @@ def load_or_compile(
     ``physics_only``: the model without what only drawing and ray casting use
     (:func:`so101sim.model.trim.physics_only`: the same physics, about a quarter of the
     memory), kept as its own entry; the full model when the cache is off or unwritable or
-    the model cannot be trimmed."""
+    the model cannot be trimmed. ``spec_fn``: the spec ``compile_fn`` compiles (the physics-only
+    model is trimmed from it; default: the file's, e.g. an arm profile's spec otherwise)."""
     if not enabled():
         return compile_fn()
     key = key_for(path, variant)
     if key is None:
         return compile_fn()
     if physics_only:
-        return _physics_only(path, compile_fn, variant, key)
+        return _physics_only(path, compile_fn, variant, key, spec_fn)
     entry = cache_dir() / f"{key}{ENTRY_SUFFIX}"
-    model = _read(entry, path)
+    model = _read(entry, path, gains=_ARM_KEY not in variant)
     if model is not None:
         log.debug("model cache: loaded %s from %s", path, entry)
         return model
@@ -242,12 +249,16 @@ def load_or_compile(
 
 
 def _physics_only(
-    path: Path, compile_fn: Callable[[], mujoco.MjModel], variant: str, key: str
+    path: Path,
+    compile_fn: Callable[[], mujoco.MjModel],
+    variant: str,
+    key: str,
+    spec_fn: Callable[[], mujoco.MjSpec] | None = None,
 ) -> mujoco.MjModel:
     name = f"{key}-physics{modeltrim.VERSION}"
     entry = cache_dir() / f"{name}{ENTRY_SUFFIX}"
     refused = cache_dir() / f"{name}{REFUSED_SUFFIX}"  # trimming refused: do not try again
-    model = _read(entry, path)
+    model = _read(entry, path, gains=_ARM_KEY not in variant)
     if model is not None:
         log.debug("model cache: loaded %s (physics only) from %s", path, entry)
         return model
@@ -255,7 +266,7 @@ def _physics_only(
     if refused.is_file():
         return full
     try:
-        spec = mujoco.MjSpec.from_file(str(path))
+        spec = spec_fn() if spec_fn is not None else mujoco.MjSpec.from_file(str(path))
     except (ValueError, OSError, mujoco.FatalError) as exc:
         log.debug("model cache: cannot read %s as a spec (%s)", path, exc)
         return full

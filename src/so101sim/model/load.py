@@ -26,7 +26,7 @@ from .cache import load_or_compile
 log = logging.getLogger(__name__)
 
 _lock = threading.Lock()
-_cache: dict[tuple[str, int, bool], mujoco.MjModel] = {}
+_cache: dict[tuple[str, int, bool, str], mujoco.MjModel] = {}
 
 
 def model_dir() -> Path:
@@ -42,12 +42,21 @@ def scene_path() -> Path:
 def load_model(
     path: str | Path | None = None, *, physics_only: bool = False, arm: object = None
 ) -> mujoco.MjModel:
-    """Compile an MJCF model, once per process and path (and once per content across
-    processes: the compiled model is cached on disk, see :mod:`so101sim.model.cache`).
+    """Compile an MJCF model with an arm profile, once per process per file and profile (and
+    once per content across processes: the compiled model is cached on disk, see
+    :mod:`so101sim.model.cache`).
 
-    With no argument, loads the shipped ``scene.xml``. Later calls with the same file (same
-    modification time) return the same compiled :class:`mujoco.MjModel`, so treat it as
-    read-only; use ``copy.copy(model)`` for a private copy you want to change.
+    With no argument, loads the shipped ``scene.xml`` with the default arm profile
+    (:data:`so101sim.model.arm.PROFILE_DEFAULT`, ``"sts3215"``: the servo model that predicts a
+    real STS3215 best, see docs/fidelity.md). Later calls with the same file (same
+    modification time) and profile return the same compiled :class:`mujoco.MjModel`, so treat
+    it as read-only; use ``copy.copy(model)`` for a private copy you want to change.
+
+    ``arm``: an arm profile (a name such as ``"sts3215"`` or ``"official"``, a TOML path, or an
+    :class:`~so101sim.model.arm.ArmProfile`) applied to the servos with ``MjSpec`` at load
+    (:func:`so101sim.model.arm.apply_profile`, the one place a profile is applied); None is
+    the default profile. ``arm="official"`` is the file's own actuators, exactly (the model is
+    compiled from the file as it is).
 
     ``physics_only=True``: for runs that never draw and never cast rays (``so101sim run
     --headless``): the model without its visual geoms, its collision meshes as their convex
@@ -57,65 +66,45 @@ def load_model(
     what is dropped: flexes, signed-distance fields, plugins, rangefinders), this is the full
     model.
 
-    ``arm``: an arm profile (a name such as ``"sts3215"``, a TOML path, or an
-    :class:`~so101sim.model.arm.ArmProfile`) applied to the servos with ``MjSpec`` at load
-    (:mod:`so101sim.model.arm`); None keeps the file's own actuators. A model with a profile
-    is compiled once per process per file and profile, and is always the full model.
-
     Raises:
         ModelError: the file does not exist, does not compile, or lacks the SO-101 joints.
         ProfileError: ``arm`` names no profile or holds invalid values.
     """
+    from .arm import apply_profile, load_profile, profile_key
+
+    prof = load_profile(arm)  # type: ignore[arg-type]
     if path is None:
         p = scene_path()
     else:  # empty, too long, missing, a folder, a device: one line saying so, no OSError
         expected = f"an MJCF file such as the shipped {str(scene_path())!r}"
         p = check_input_file(path, "model file", expected=expected, error=ModelError)
-    if arm is not None:
-        return _load_with_arm(p, arm)
     p = p.resolve()
-    key = (str(p), p.stat().st_mtime_ns, physics_only)
+    variant = profile_key(prof)  # "" for the file's own actuators (official)
+    key = (str(p), p.stat().st_mtime_ns, physics_only, variant)
+
+    def spec_fn() -> mujoco.MjSpec:
+        spec = mujoco.MjSpec.from_file(str(p))
+        if variant:
+            apply_profile(spec, prof)
+        return spec
+
+    def compile_fn() -> mujoco.MjModel:
+        if not variant:
+            return mujoco.MjModel.from_xml_path(str(p))
+        return spec_fn().compile()
+
     with _lock:
         model = _cache.get(key)
         if model is None:
             try:
                 model = load_or_compile(
-                    p, lambda: mujoco.MjModel.from_xml_path(str(p)), physics_only=physics_only
+                    p, compile_fn, variant=variant, physics_only=physics_only, spec_fn=spec_fn
                 )
             except (ValueError, mujoco.FatalError) as exc:
                 raise ModelError(f"model file {str(p)!r} does not compile: {exc}") from exc
             arm_index(model)  # fail now, not at the first command, if joints are missing
             _cache[key] = model
-            log.debug("compiled %s (nq=%d, nu=%d)", p, model.nq, model.nu)
-    return model
-
-
-_arm_cache: dict[tuple[str, int, str], mujoco.MjModel] = {}
-
-
-def _load_with_arm(p: Path, arm: object) -> mujoco.MjModel:
-    from .arm import apply_profile, load_profile, profile_toml
-
-    if not p.is_file():
-        raise ModelError(
-            f"model file {str(p)!r} does not exist; expected an MJCF file such as the shipped "
-            f"{str(scene_path())!r}"
-        )
-    p = p.resolve()
-    prof = load_profile(arm)  # type: ignore[arg-type]
-    key = (str(p), p.stat().st_mtime_ns, profile_toml(prof))
-    with _lock:
-        model = _arm_cache.get(key)
-        if model is None:
-            try:
-                spec = mujoco.MjSpec.from_file(str(p))
-                apply_profile(spec, prof)
-                model = spec.compile()
-            except (ValueError, mujoco.FatalError) as exc:
-                raise ModelError(f"model file {str(p)!r} does not compile: {exc}") from exc
-            arm_index(model)
-            _arm_cache[key] = model
-            log.debug("compiled %s with arm profile %s", p, prof.name)
+            log.debug("compiled %s with arm profile %s (nq=%d)", p, prof.name, model.nq)
     return model
 
 
@@ -193,14 +182,16 @@ def loaded_models() -> list[tuple[Path, mujoco.MjModel]]:
     """``(file, model)`` for every model :func:`load_model` has compiled in this process (the
     full ones: a physics-only model has nothing to draw)."""
     with _lock:
-        return [(Path(p), model) for (p, _mtime, physics), model in _cache.items() if not physics]
+        return [
+            (Path(p), model) for (p, _mtime, physics, _arm), model in _cache.items() if not physics
+        ]
 
 
 def model_source(model: mujoco.MjModel) -> Path | None:
     """The MJCF file ``model`` was compiled from by :func:`load_model`, or None if it was built
     another way (or is a copy)."""
     with _lock:
-        for (path, _mtime, _physics), cached in _cache.items():
+        for (path, _mtime, _physics, _arm), cached in _cache.items():
             if cached is model:
                 return Path(path)
     return None

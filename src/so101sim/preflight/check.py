@@ -19,12 +19,21 @@ limits, no effort stays above ``max_effort`` for longer than ``max_saturation`` 
 about one period of LeRobot's 30 Hz control loop), every tracking error stays at or below
 ``max_tracking_error``, and nothing touches.
 
+The efforts are fractions of the arm profile's torque limits (the actuators' ``forcerange``:
+the default ``sts3215`` at 7.4 V, ±3.92 N·m; ``official``, ±3.35 N·m; see
+:mod:`so101sim.model.arm`), and the arm is the profile's: the fitted STS3215 sags under the
+arm's weight and lags a moving goal (its firmware slews the goal at most 4.9 rad/s, P = 16
+gives 11 N·m/rad, a 27 ms delay), so its tracking errors are those of the real arm (up to
+9.2° in the lab motion) and the default ``max_tracking_error`` (15°) is set for it. Its
+efforts stay well inside the limit in the lab's moves (the slew-limited goal does not kick
+the motor at a move's start).
+
 Why a time and not the bare peak: the ``linear`` profile (the lab's) starts and stops each move
-with a step in velocity, and the shipped model's stiff actuators (kp ≈ 998 N·m/rad) meet it by
-saturating for a few milliseconds (shoulder and elbow: 6–14 ms in the lab motion) while the
-tracking error stays under 0.3°. The servo follows; the report notes the spike. A move that is
-too fast, or pushes into the floor, saturates for far longer and fails. ``minimum_jerk`` and
-``limited`` keep the lab's moves under about 40 %.
+with a step in velocity, and the vendored model's stiff actuators (``--arm official``, kp ≈
+998 N·m/rad) meet it by saturating for a few milliseconds (shoulder and elbow: 6–14 ms in the
+lab motion) while the tracking error stays under 0.3°. The servo follows; the report notes
+the spike. A move that is too fast, or pushes into the floor, saturates for far longer and
+fails.
 
 The gripper is exempt from the limit margin (it is meant to close against its stop; 0 *is* its
 lower limit) but not from the other checks.
@@ -105,8 +114,13 @@ def preflight(
     thresholds: Thresholds | None = None,
     lines: Sequence[int] = (),
     strict: bool = False,
+    arm: object = None,
 ) -> PreflightReport:
     """Simulate ``steps`` headless from ``start`` (at rest) and judge them.
+
+    ``model``: a compiled model, or a file loaded with the arm profile ``arm`` (None: the
+    default, see :func:`so101sim.model.load_model`); the efforts are fractions of that
+    profile's torque limits (the actuators' ``forcerange``).
 
     ``lines`` (the motion file's line of each step) only label the report. With ``strict``,
     a ``limited`` move shorter than the joint limits allow raises TrajectoryLimitError first.
@@ -115,7 +129,7 @@ def preflight(
         So101SimError: an invalid step (bad target, duration, profile), or strict refusal.
     """
     th = thresholds if thresholds is not None else Thresholds()
-    m = model if isinstance(model, mujoco.MjModel) else load_model(model)
+    m = model if isinstance(model, mujoco.MjModel) else load_model(model, arm=arm)
     measured = measure(
         steps, start=start, model=m, saturation_level=th.max_effort, lines=lines, strict=strict
     )
@@ -135,9 +149,11 @@ def check_motion_file(
     model: mujoco.MjModel | str | Path | None = None,
     thresholds: Thresholds | None = None,
     strict: bool = False,
+    arm: object = None,
 ) -> PreflightReport:
-    """Load a motion file and :func:`preflight` it from its start pose."""
-    m = model if isinstance(model, mujoco.MjModel) else load_model(model)
+    """Load a motion file and :func:`preflight` it from its start pose (on ``model`` with the
+    arm profile ``arm``, see :func:`preflight`)."""
+    m = model if isinstance(model, mujoco.MjModel) else load_model(model, arm=arm)
     motion = load_motion(path, units=arm_units(m), model=m)
     return preflight(
         motion.steps,

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..model.arm import load_profile, profile_from_toml, profile_toml
 from ..model.load import arm_units, load_model, scene_path
 from ..motion.file import MotionFile, parse_motion
 from ..motion.lines import MAX_FILE_BYTES, load_toml, read_text_limited
@@ -62,6 +63,7 @@ class VariantJob:
     motion_path: str
     model_path: str
     count: int
+    arm: str = ""  # the arm profile as TOML text ("": the default profile)
     seed: int = 0
     ranges: VariantRanges = field(default_factory=VariantRanges)
     thresholds: Thresholds = field(default_factory=Thresholds)
@@ -90,6 +92,7 @@ def make_job(
     thresholds: Thresholds | None = None,
     strict: bool = False,
     ranges: VariantRanges | None = None,
+    arm: object = None,
 ) -> VariantJob:
     """Check every setting (count and seed first, before anything is read or allocated) and
     read the motion file and its ``[variants]`` table.
@@ -110,6 +113,7 @@ def make_job(
         motion_path=str(path),
         model_path=str(Path(model).expanduser() if model is not None else scene_path()),
         count=count,
+        arm=profile_toml(load_profile(arm)),  # plain text: it travels to Ray workers
         seed=seed,
         ranges=ranges,
         thresholds=thresholds if thresholds is not None else Thresholds(),
@@ -118,8 +122,9 @@ def make_job(
 
 
 def _prepare(job: VariantJob) -> tuple[Any, Any, MotionFile]:
-    load_model(job.model_path)  # the model's own errors (missing file, no SO-101 joints)
-    base = sensor_model(job.model_path)
+    arm = profile_from_toml(job.arm, "the job's arm profile") if job.arm else None
+    load_model(job.model_path, arm=arm)  # the model's own errors (missing file, no joints)
+    base = sensor_model(job.model_path, arm)
     motion = parse_motion(job.motion_text, path=job.motion_path, units=arm_units(base))
     plan = plan_motion(base, motion.steps, motion.start, lines=motion.lines, strict=job.strict)
     return base, plan, motion
@@ -174,8 +179,10 @@ def check_variants(
     thresholds: Thresholds | None = None,
     strict: bool = False,
     ranges: VariantRanges | None = None,
+    arm: object = None,
 ) -> VariantsReport:
-    """Run the motion file at ``path`` on ``count`` perturbed arms and judge each.
+    """Run the motion file at ``path`` on ``count`` perturbed arms (of the arm profile ``arm``;
+    None: the default) and judge each.
 
     ``threads``: at most this many (default: every core); the result does not depend on it.
 
@@ -187,7 +194,7 @@ def check_variants(
         threads = check_count(threads, "threads", minimum=1, maximum=MAX_THREADS)
     job = make_job(
         path, count=count, seed=seed, model=model, thresholds=thresholds, strict=strict,
-        ranges=ranges,
+        ranges=ranges, arm=arm,
     )  # fmt: skip
     return summarize(job, run_chunk(job, threads=threads))
 

@@ -44,6 +44,7 @@ import mujoco
 import numpy as np
 
 from ..errors import ModelError
+from ..model.arm import apply_profile, fill_delay_history, load_profile, profile_key
 from ..model.cache import load_or_compile
 from ..model.load import arm_index, arm_units
 from ..motion.plan import plan_segments
@@ -109,13 +110,18 @@ def plan_motion(
     )
 
 
-def sensor_model(path: str | Path) -> mujoco.MjModel:
-    """The model at ``path`` with the preflight's sensors added (compiled once per content,
-    through the model cache)."""
+def sensor_model(path: str | Path, arm: object = None) -> mujoco.MjModel:
+    """The model at ``path`` with the arm profile ``arm`` (None: the default) and the
+    preflight's sensors added (compiled once per content and profile, through the model
+    cache)."""
     p = Path(path)
+    prof = load_profile(arm)  # type: ignore[arg-type]
+    arm_key = profile_key(prof)
 
     def build() -> mujoco.MjModel:
         spec = mujoco.MjSpec.from_file(str(p))
+        if arm_key:  # official: the file's own actuators
+            apply_profile(spec, prof)
         found, dist, mindist = 1 << 0, 1 << 3, 1  # mjtConDataField bits, mjtConReduce
         spec.add_sensor(
             name=CONTACT_SENSOR,
@@ -131,7 +137,7 @@ def sensor_model(path: str | Path) -> mujoco.MjModel:
             )
         return spec.compile()
 
-    model = load_or_compile(p.resolve(), build, variant=_SENSOR_CACHE_KEY)
+    model = load_or_compile(p.resolve(), build, variant=f"{_SENSOR_CACHE_KEY}{arm_key}")
     arm_index(model)
     return model
 
@@ -289,6 +295,7 @@ class Worker:
         d.qpos[idx.qpos] = q
         d.qvel[idx.dof] = 0.0
         d.ctrl[idx.actuator] = q
+        fill_delay_history(m, d)  # a delayed servo holds the start from the first step
         mujoco.mj_forward(m, d)
         s0 = np.empty(mujoco.mj_stateSize(m, _FULL))
         mujoco.mj_getState(m, d, s0, _FULL)

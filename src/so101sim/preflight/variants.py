@@ -5,7 +5,9 @@ A *variant* is the shipped arm with:
 
 * a **payload** at the gripper (a point mass at the ``gripperframe`` site, folded into the
   gripper body's mass, centre of mass and inertia);
-* its position servos' **kp**, **kv** and **force limit** scaled;
+* its position servos' **kp** (the stiffness: ``-biasprm[1]``, and ``gainprm[0]`` for a plain
+  position actuator; MuJoCo 4's PID actuator of the slew-limited STS3215 keeps it in the bias
+  alone), **kv** and **force limit** (the profile's torque limit) scaled;
 * every joint's **damping**, **friction loss** and **armature** scaled;
 * a **zero offset** per joint (a calibration error): the servo drives its *reading* to the
   target, so the true joint ends up ``offset`` away from where it is told to go.
@@ -74,33 +76,48 @@ BOUNDS: dict[str, Bound] = {
 
 @dataclass(frozen=True)
 class VariantRanges:
-    """Each parameter is drawn uniformly from ``[low, high]``.
+    """Each parameter is drawn uniformly from ``[low, high]``, as a scale of the arm profile's
+    own value (the default profile ``sts3215``: docs/fidelity.md).
 
-    Where the defaults come from:
+    Where the defaults come from. Two sources of doubt: the fit's uncertainty (the standard
+    errors in ``sts3215.toml``: 0.2–0.4 % for the stiffness, torque limit, back-EMF and
+    armature, 2–4 % for the Coulomb friction, 0.01 ms for the delay: the bench's 240 runs pin
+    that one servo down) and the spread between real servos, which is far larger and which
+    no data here measures (one servo was on the bench). So the ranges are set by the spread,
+    from what makes two STS3215s differ, and each says so:
 
     * ``payload_kg`` (0–0.2 kg): the objects the SO-101 is used with (cubes, pens, LEGO bricks,
       the objects of LeRobot's SO-101 datasets) weigh tens of grams to about 200 g; the
       STS3215's torque leaves little room above that at full reach. A judgement call.
-    * ``kp_scale``, ``kv_scale`` (0.8–1.2): the model's gains are not the servo's own (the
-      model's comment: derived for a servo P gain of 16, "not a 1-to-1 mapping"); ±20 % is a
-      judgement call for how far a real servo's response is from the model's.
-    * ``force_scale`` (0.8–1.0): the STS3215 datasheet rates its stall torque at the nominal
-      supply voltage; a sagging supply (the torque scales about with the voltage: 6 V on a
-      7.4 V servo is 0.81×) or a warm motor gives less, never more.
-    * ``damping_scale``, ``frictionloss_scale`` (0.5–2.0): identified on one arm; gearbox
-      grease, wear and temperature change them by a factor, not by percent (judgement call).
+    * ``kp_scale`` (0.8–1.2): the firmware's P is exact (LeRobot writes 16), but the torque
+      per unit of duty scales with the supply voltage (a 7.4 V servo on a pack between 6.0 and
+      8.4 V: 0.81–1.14×) and with the motor's torque constant (a few percent between units).
+      The fit's ±0.3 % is far inside.
+    * ``kv_scale`` (0.8–1.2): the actuator's velocity gain; ``sts3215`` has none (its back-EMF
+      is joint damping), ``official`` has 2.731. A judgement call.
+    * ``force_scale`` (0.8–1.0): the stall torque at the nominal supply; a sagging supply
+      (6 V on a 7.4 V servo is 0.81×) or a warm motor gives less, never more.
+    * ``damping_scale`` (0.7–1.3): for ``sts3215`` nearly all of it is back-EMF, kt²/R: the
+      winding's resistance rises 0.39 %/K (a motor 40 K warm brakes 0.86× as hard) and kt
+      differs by some percent between units (its square by twice that). The fit's ±0.4 % is
+      far inside. (Was 0.5–2.0 when the only damping was the vendored model's viscous guess.)
+    * ``frictionloss_scale`` (0.5–2.0): gearbox grease, wear and temperature change Coulomb
+      friction by a factor, not by percent (judgement call; the fit's ±2–4 % is inside).
     * ``armature_scale`` (0.8–1.2): the reflected rotor inertia is set by the gear ratio and
-      varies little (judgement call).
+      varies little (the fit: ±0.2 %; judgement call).
     * ``zero_offset_deg`` (±1.5°, drawn from ``[-high, high]``; ``low`` must be 0): LeRobot's
       calibration has the user place the arm at mid-range by eye; a degree or two off is
       usual (the servo's own resolution, 4096 counts a turn, is 0.09°).
+
+    The command delay (27 ms) is not varied: it is the bus and the firmware's loop, the same
+    for every servo on the arm, and the fit pins it to 0.01 ms.
     """
 
     payload_kg: tuple[float, float] = (0.0, 0.2)
     kp_scale: tuple[float, float] = (0.8, 1.2)
     kv_scale: tuple[float, float] = (0.8, 1.2)
     force_scale: tuple[float, float] = (0.8, 1.0)
-    damping_scale: tuple[float, float] = (0.5, 2.0)
+    damping_scale: tuple[float, float] = (0.7, 1.3)
     frictionloss_scale: tuple[float, float] = (0.5, 2.0)
     armature_scale: tuple[float, float] = (0.8, 1.2)
     zero_offset_deg: tuple[float, float] = (0.0, 1.5)
@@ -250,8 +267,14 @@ def apply_variant(
         getattr(m, name)[:] = getattr(base, name)
     idx = arm_index(base)
     act, dof = idx.actuator, idx.dof
-    kp = base.actuator_gainprm[act, 0] * v.kp_scale
-    m.actuator_gainprm[act, 0] = kp
+    # The stiffness is -biasprm[1] for every position servo so101sim makes: a plain position
+    # actuator also has it in gainprm[0] (kp·ctrl), MuJoCo 4's PID actuator (the slew-limited
+    # STS3215) keeps gainprm[0] at 0 and drives through its bias alone. biasprm[0] is the
+    # calibration offset times kp: it scales with kp.
+    kp = -base.actuator_biasprm[act, 1] * v.kp_scale
+    gain = base.actuator_gainprm[act, 0] != 0.0
+    m.actuator_gainprm[act[gain], 0] = kp[gain]
+    m.actuator_biasprm[act, 0] = base.actuator_biasprm[act, 0] * v.kp_scale
     m.actuator_biasprm[act, 1] = -kp
     m.actuator_biasprm[act, 2] = base.actuator_biasprm[act, 2] * v.kv_scale
     m.actuator_forcerange[act] = base.actuator_forcerange[act] * v.force_scale[:, None]

@@ -147,20 +147,23 @@ def scene_model(
     model: str | Path | None,
     scene: str | None = None,
     distractors: int = 0,
+    *,
+    arm: object = None,
 ) -> mujoco.MjModel:
-    """A follower's own physics model: ``model`` (the shipped scene by default) with its
-    cameras and the table and objects of the ``scene`` preset (see
-    :data:`so101sim.scenes.SCENE_PRESETS`) added, compiled anew; without cameras or a scene,
-    a private copy of the loaded model (the follower changes the gripper's force range on
-    it). ``distractors``: that many distractor boxes for the domain randomisation."""
+    """A follower's own physics model: ``model`` (the shipped scene by default) with the arm
+    profile ``arm`` (None: the default), its cameras and the table and objects of the
+    ``scene`` preset (see :data:`so101sim.scenes.SCENE_PRESETS`) added, compiled anew;
+    without cameras or a scene, a private copy of the loaded model (the follower changes the
+    gripper's force range on it). ``distractors``: that many distractor boxes for the domain
+    randomisation."""
     cams = parse_cameras(cameras)
     if scene is not None:
         extra = (lambda spec: add_distractors(spec, distractors)) if distractors else None
         specs = [c.spec for c in cams.values()]
-        return build_model(specs, model, scene=preset_scene(scene), extra=extra)
+        return build_model(specs, model, scene=preset_scene(scene), extra=extra, arm=arm)
     if cams:
-        return build_model([c.spec for c in cams.values()], model)
-    return copy.copy(load_model(model))
+        return build_model([c.spec for c in cams.values()], model, arm=arm)
+    return copy.copy(load_model(model, arm=arm))
 
 
 @dataclass(frozen=True)

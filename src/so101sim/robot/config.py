@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import CameraError, JointNameError, RobotConfigError, So101SimError
+from ..model.arm import load_profile
 from ..scenes import SCENE_PRESETS
 from ..sim.stepping import MAX_PLAYBACK_SPEED, MIN_PLAYBACK_SPEED
 from ..units import JOINT_NAMES, STARTING_POSE, normalize_joint_name, parse_pose
@@ -116,6 +117,11 @@ class SO101SimFollowerConfig:
     ``get_observation()`` under the camera's name: see :mod:`so101sim.robot.cameras`."""
     model: str | Path | None = None
     """MJCF file to load instead of the shipped ``scene.xml``."""
+    arm: str | None = None
+    """The arm profile: the servos' actuator model (:mod:`so101sim.model.arm`), a shipped name
+    (``"sts3215"``, ``"official"``, ``"sts3215-12v"``) or a TOML file (e.g. written by
+    ``so101sim fit``). None: the default, ``"sts3215"`` (the model that predicts a real
+    STS3215 best; ``"official"`` is the vendored model's ideal position actuators)."""
     scene: str | None = None
     """A table-top scene preset of :mod:`so101sim.scenes` (``"pick_cube"``,
     ``"cube_to_bowl"``): its table and objects (at their nominal poses) are added to the
@@ -172,6 +178,11 @@ class SO101SimFollowerConfig:
         except CameraError as exc:
             raise RobotConfigError(f"cameras: {exc}") from None
         check_choice(self.mode, "mode", MODES, error=RobotConfigError)
+        if self.arm is not None:
+            try:
+                load_profile(self.arm)
+            except So101SimError as exc:
+                raise RobotConfigError(f"arm: {exc}") from None
         if self.scene is not None:
             check_choice(self.scene, "scene", SCENE_PRESETS, error=RobotConfigError)
         check_choice(self.randomize, "randomize", RANDOMIZE_CHOICES, error=RobotConfigError)

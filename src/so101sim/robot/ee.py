@@ -206,8 +206,15 @@ def ee_action(
 @dataclass
 class EndEffectorController:
     """Drives a robot (``get_observation``/``send_action``, e.g. :class:`SO101SimFollower`)
-    by its tip: each :meth:`send` reads the arm, computes :func:`ee_action` with this
-    controller's step bounds and sends it.
+    by its tip: each :meth:`send` computes :func:`ee_action` with this controller's step
+    bounds and sends it.
+
+    Each step starts from the pose this controller commanded last (the measured pose before
+    its first send, or after :meth:`reset`): a real servo sags under the arm's weight and lags
+    its goal (the default arm profile, ``sts3215``, by a centimetre or more at the tip), and
+    steps taken from the measured tip would chase the sag (each target a step from a tip that
+    sits lower than the last target) and stall short of the goal. So the target moves at most
+    ``max_step_m`` per call, and the arm follows it as its servos do.
 
     Example (50 Hz, lockstep: each ``send_action`` advances 0.02 s)::
 
@@ -225,6 +232,11 @@ class EndEffectorController:
         self.max_step_m, self.max_angle_step_deg = _step_bounds(
             self.max_step_m, self.max_angle_step_deg
         )
+        self._sent: dict[str, float] | None = None
+
+    def reset(self) -> None:
+        """Forget the last target: the next step starts from the measured pose."""
+        self._sent = None
 
     def tip(self) -> TipPose:
         """Where the robot's tip is now (from one observation)."""
@@ -232,18 +244,28 @@ class EndEffectorController:
         return for_model(m).tip_array(observed_values(self.robot.get_observation(), m))
 
     def action(self, **target: Any) -> dict[str, float]:
-        """:func:`ee_action` on a fresh observation (``tip=``/``delta=``, ``pitch=``, ...)."""
+        """:func:`ee_action` from the last target sent (a fresh observation before the first;
+        ``tip=``/``delta=``, ``pitch=``, ...)."""
+        source: Any = self.robot
+        if self._sent is not None:
+            observation = dict(self.robot.get_observation())
+            observation.update(self._sent)  # the joints as commanded, the rest as measured
+            source = observation
         return ee_action(
-            self.robot,
+            source,
             max_step_m=self.max_step_m,
             max_angle_step_deg=self.max_angle_step_deg,
             clip=self.clip,
+            model=_model_of(self.robot, None),
             **target,
         )
 
     def send(self, **target: Any) -> dict[str, float]:
         """Compute :meth:`action` and send it; returns what the robot sent."""
-        return self.robot.send_action(self.action(**target))
+        sent = self.robot.send_action(self.action(**target))
+        body = {k: float(v) for k, v in sent.items() if k != GRIPPER + LEROBOT_SUFFIX}
+        self._sent = body if len(body) == len(JOINT_NAMES) - 1 else None
+        return sent
 
 
 __all__ = [

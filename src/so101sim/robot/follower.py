@@ -61,6 +61,7 @@ import numpy as np
 
 from ..errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, RobotConfigError
 from ..exitgate import gated
+from ..model.arm import gripper_full_range, load_profile
 from ..sim.simulation import Simulation
 from ..units import GRIPPER_INDEX, STARTING_POSE, parse_pose
 from ..validation import check_duration
@@ -132,12 +133,17 @@ class SO101SimFollower:
         from ..scenes import randomization  # the preset's distractors are built in
 
         n = randomization(self.config.randomize).distractors
-        model = scene_model(self.config.cameras, self.config.model, self.config.scene, n)
+        profile = load_profile(self.config.arm)
+        model = scene_model(
+            self.config.cameras, self.config.model, self.config.scene, n, arm=profile
+        )
         self._sim = Simulation(model, initial_pose=pose)
         self._limits = tuple(a.tolist() for a in self._sim.units.limits)  # floats, per action
         self._rig = CameraRig(self._sim, self.config.cameras)
         self._gripper = int(self._sim.index.actuator[GRIPPER_INDEX])
-        self._gripper_forcerange = self._sim.model.actuator_forcerange[self._gripper].copy()
+        # the gripper's full range (the profile's torque limit, before LeRobot's limit that
+        # configure() applies: gripper_torque_fraction of it)
+        self._gripper_forcerange = gripper_full_range(profile)
         self._lock = self._sim.lock
         self._connected = False
         self._runner = RobotThreads(self._sim, str(self), self.config.speed)  # until connect()
@@ -221,7 +227,8 @@ class SO101SimFollower:
     def configure(self) -> None:
         """Bound the gripper's effort as LeRobot's ``configure()`` bounds the real gripper's
         torque (``Max_Torque_Limit`` 500 of 1000): the gripper actuator gets
-        ``gripper_torque_fraction`` (50 %) of the model's force range."""
+        ``gripper_torque_fraction`` (50 %) of the arm profile's torque limit (the profile's
+        own gripper ``torque_scale`` is replaced, not multiplied)."""
         with self._lock:  # the force range is in the model: no Simulation method sets it
             self._sim.model.actuator_forcerange[self._gripper] = (
                 self._gripper_forcerange * self.config.gripper_torque_fraction

@@ -16,6 +16,7 @@ from pathlib import Path
 import mujoco
 
 from ..errors import ModelError, SettingError
+from ..model.arm import apply_profile, load_profile, profile_key
 from ..model.load import arm_index, scene_path
 from ..validation import check_count, check_range
 from .cameras import CameraSpec, add_camera, check_camera_names
@@ -95,14 +96,20 @@ def scene_spec(
     cameras: Sequence[CameraSpec] = (),
     model: str | Path | None = None,
     scene: TableScene | None = None,
+    *,
+    arm: object = None,
 ) -> mujoco.MjSpec:
-    """The MjSpec of ``model`` (the shipped ``scene.xml`` by default) with ``cameras`` added,
-    and the table, objects and cameras of ``scene``."""
+    """The MjSpec of ``model`` (the shipped ``scene.xml`` by default) with the arm profile
+    ``arm`` applied (None: the default profile, see :func:`so101sim.model.load_model`),
+    ``cameras`` added, and the table, objects and cameras of ``scene``."""
     path = Path(model) if model is not None else scene_path()
+    prof = load_profile(arm)  # type: ignore[arg-type]  # an unknown profile fails first
     try:
         spec = mujoco.MjSpec.from_file(str(path))
     except (ValueError, mujoco.FatalError) as exc:
         raise ModelError(f"model file {str(path)!r} cannot be read: {exc}") from exc
+    if profile_key(prof):  # official: the file's own actuators, as they are
+        apply_profile(spec, prof)
     cams = tuple(cameras) + (scene.cameras if scene is not None else ())
     check_camera_names(spec, cams)
     for cam in cams:
@@ -138,10 +145,12 @@ def build_model(
     *,
     scene: TableScene | None = None,
     extra: Callable[[mujoco.MjSpec], None] | None = None,
+    arm: object = None,
 ) -> mujoco.MjModel:
-    """Compile the shipped scene (or ``model``) with ``cameras`` added, and with ``scene``'s
-    table, objects and cameras, and whatever ``extra`` adds to its MjSpec. The draft render
-    preset finds the same scene with simplified meshes (:func:`scene_builder`).
+    """Compile the shipped scene (or ``model``) with the arm profile ``arm`` (None: the
+    default), ``cameras`` added, and with ``scene``'s table, objects and cameras, and whatever
+    ``extra`` adds to its MjSpec. The draft render preset finds the same scene with simplified
+    meshes (:func:`scene_builder`).
 
     Raises:
         ModelError, CameraError, SettingError: the model cannot be read or compiled; a camera
@@ -151,7 +160,7 @@ def build_model(
     checked = scene.validated() if scene is not None else None
 
     def make() -> mujoco.MjSpec:
-        spec = scene_spec(cams, model, checked)
+        spec = scene_spec(cams, model, checked, arm=arm)
         if extra is not None:
             extra(spec)  # e.g. randomize.add_distractors: in every rebuild (draft renders)
         return spec
@@ -174,9 +183,10 @@ def build_scene(
     model: str | Path | None = None,
     *,
     extra: Callable[[mujoco.MjSpec], None] | None = None,
+    arm: object = None,
 ) -> mujoco.MjModel:
     """Compile ``scene`` (see :func:`build_model`)."""
-    return build_model((), model, scene=scene, extra=extra)
+    return build_model((), model, scene=scene, extra=extra, arm=arm)
 
 
 def scene_builder(model: mujoco.MjModel) -> Callable[[], mujoco.MjSpec] | None:

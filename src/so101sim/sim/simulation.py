@@ -247,8 +247,10 @@ class Simulation:
             self.data.qpos[self.index.qpos] = q
             self.data.qvel[self.index.dof] = 0.0
             self._set_target(q)
-            mujoco.mj_forward(self.model, self.data)
+            # the delayed servos' history first, so the forces mj_forward computes are those
+            # of an arm holding the pose (not of a goal still at the history's zeros)
             fill_delay_history(self.model, self.data)
+            mujoco.mj_forward(self.model, self.data)
 
     def command(self, pose: Pose, *, clip: bool = False) -> dict[str, float]:
         """Set the position targets; joints left out keep their last target. Returns the full
