@@ -30,6 +30,7 @@ def _record(cls, poses):
     return sim, recs
 
 
+@pytest.mark.parametrize("path", ["twin", "screen"])
 @pytest.mark.parametrize(
     "poses",
     [
@@ -39,9 +40,22 @@ def _record(cls, poses):
         [EVERY_JOINT, INTO_FLOOR, EVERY_JOINT, STARTING_POSE],
     ],
 )
-def test_the_state_recorder_gives_the_step_recorders_samples_bit_for_bit(poses):
+def test_the_state_recorder_gives_the_step_recorders_samples_bit_for_bit(
+    poses, path, monkeypatch
+):
+    """Both contact paths: the kernel's contact twin (the shipped model: each step's contact
+    count from a contact sensor), and the screen (a model with no twin)."""
+    from so101sim.sim import stepping
+
+    used = []
+    real = stepping.contact_twin
+    if path == "screen":
+        monkeypatch.setattr(stepping, "contact_twin", lambda m: used.append(m) and None)
+    else:
+        monkeypatch.setattr(stepping, "contact_twin", lambda m: used.append(m) or real(m))
     a, steps = _record(StepRecorder, poses)
     b, states = _record(StateRecorder, poses)
+    assert used and (path == "screen" or real(b.model) is not None)
     assert np.array_equal(a.data.qpos, b.data.qpos)  # the same physics
     touched = 0
     for s, v in zip(steps, states, strict=True):
@@ -114,3 +128,48 @@ def test_the_screen_never_clears_a_pair_that_touches(seed):
         cleared += int(clear.sum())
         assert not clear[pair].any()  # a cleared pair never touches
     assert touching > 0 and cleared > 0  # both cases were met
+
+
+def test_the_contact_twin_has_the_models_physics_bit_for_bit():
+    """Stepped for thousands of steps with the same targets, the twin (the model with a
+    contact sensor) and the model end in the same state; its sensor counts each step's
+    contacts as the model's own step finds them (self-contact and the floor included)."""
+    import mujoco
+
+    from so101sim.model.twin import contact_twin
+
+    sim = Simulation()
+    m = sim.model
+    twin = contact_twin(m)
+    assert twin is not None and twin.model.nsensordata == m.nsensordata + 1
+    d, td = mujoco.MjData(m), mujoco.MjData(twin.model)
+    rng = np.random.default_rng(3)
+    lo, hi = m.actuator_ctrlrange.T
+    touched = 0
+    for i in range(3000):
+        if i % 200 == 0:
+            ctrl = rng.uniform(lo, hi)
+        d.ctrl[:] = td.ctrl[:] = ctrl
+        mujoco.mj_step(m, d)
+        mujoco.mj_step(twin.model, td)
+        assert td.sensordata[twin.found] == d.ncon
+        touched += d.ncon > 0
+    assert np.array_equal(d.qpos, td.qpos) and np.array_equal(d.qvel, td.qvel)
+    assert touched > 0
+
+
+def test_a_model_with_no_source_has_no_twin_and_a_copy_of_one_has():
+    import copy
+
+    import mujoco
+
+    from so101sim.model import load_model
+    from so101sim.model.twin import contact_twin
+
+    m = load_model()
+    assert contact_twin(copy.copy(m)) is not None  # the same model: found by its signature
+    other = copy.copy(m)
+    other.body_mass[2] += 0.1  # not the loaded model any more
+    assert contact_twin(other) is None
+    xml = "<mujoco><worldbody><geom type='plane' size='1 1 1'/></worldbody></mujoco>"
+    assert contact_twin(mujoco.MjModel.from_xml_string(xml)) is None

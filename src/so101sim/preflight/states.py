@@ -13,9 +13,12 @@ the first step, one after each step), for :func:`~so101sim.preflight.measure.col
   actuators on a joint (:func:`vectorisable` says when; otherwise the lab helpers watch every
   step with the step recorder, as before);
 * **contacts**: the contacts of step i are those of the positions before it (MuJoCo detects
-  them before it integrates), found by the contact screen (:mod:`so101sim.preflight.screen`),
-  which calls MuJoCo's own collision detection only at positions where parts may touch: the
-  same contacts, bit for bit, as the step itself found.
+  them before it integrates). Where the kernel stepped on the model's contact twin
+  (:mod:`so101sim.model.twin`: the model loaded from a file, with a ``contact`` sensor), it
+  recorded each step's contact count in C; MuJoCo's collision detection is then called again
+  only at the positions of the steps that found contacts. For any other model, the contact
+  screen (:mod:`so101sim.preflight.screen`) calls it only at positions where parts may touch.
+  Either way, the same contacts, bit for bit, as the step itself found.
 """
 
 from __future__ import annotations
@@ -92,6 +95,8 @@ class StateRecorder(Observer):
     derived from the kernel's states after each block (see the module). Only for
     :func:`vectorisable` models."""
 
+    wants_contact_counts = True  # the kernel's contact twin says which steps touched
+
     def __init__(self, m: mujoco.MjModel) -> None:
         self.m = m
         self.act = arm_index(m).actuator
@@ -135,10 +140,33 @@ class StateRecorder(Observer):
         v_before = np.vstack([self._qvel[None], v[:-1]])
         self._times.append(states[:, 0].copy())
         self._forces.append(actuator_forces(self.m, trace.ctrl, q_before, v_before))
-        contacts_at(self.m, q_before, v_before, v, states[:, 0], self._mocap, self.contacts)
+        if trace.contact_counts is not None:
+            self._contacts_where(trace.contact_counts, q_before, states[:, 0])
+        else:
+            contacts_at(self.m, q_before, v_before, v, states[:, 0], self._mocap, self.contacts)
         self._qpos, self._qvel = q[-1].copy(), v[-1].copy()
 
     # -- contacts
+    def _contacts_where(self, counts: np.ndarray, q: np.ndarray, times: np.ndarray) -> None:
+        """The contacts of the steps whose count (the contact twin's) is not zero: MuJoCo's
+        collision detection at the positions before them, the same contacts bit for bit."""
+        steps = np.flatnonzero(counts)
+        if not steps.size:
+            return
+        d = self._scratch()
+        for i in steps.tolist():
+            d.qpos[:] = q[i]
+            mujoco.mj_kinematics(self.m, d)
+            mujoco.mj_collision(self.m, d)
+            record_contacts(self.m, d, float(times[i]), self.contacts)
+
+    def _scratch(self) -> mujoco.MjData:
+        d = getattr(self, "_data", None)
+        if d is None:
+            d = self._data = mujoco.MjData(self.m)
+            d.mocap_pos[:], d.mocap_quat[:] = self._mocap
+        return d
+
     def _record_contacts(self, d: mujoco.MjData, t: float) -> None:
         record_contacts(self.m, d, t, self.contacts)
 

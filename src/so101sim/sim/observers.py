@@ -101,6 +101,9 @@ class Trace:
     # the blocks observers see: every step's whole state (FULLPHYSICS rows: time, qpos, qvel,
     # ...), as the kernel recorded it; None in the trace a run returns
     states: np.ndarray | None = None
+    # how many contacts each step found (MuJoCo's ``ncon`` before it integrated), for the
+    # observers that ask (:attr:`Observer.wants_contact_counts`); None where not recorded
+    contact_counts: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.steps if self.steps >= 0 else len(self.time)
@@ -115,7 +118,11 @@ class Observer:
       (a viewer that was closed).
     * :meth:`on_steps`: each block of steps, as they are taken, with the phase's name.
     * :meth:`on_start`: once before each run of steps, with the live model and data.
+    * :attr:`wants_contact_counts`: True to get each step's contact count in the blocks
+      (:attr:`Trace.contact_counts`, where the kernel can record it).
     """
+
+    wants_contact_counts: bool = False
 
     def on_start(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
         return None
