@@ -8,8 +8,8 @@ bit (checked once per model when the twin is made: every array of the two compil
 but the sensors' and the file paths' must be equal, else there is no twin). Only a model
 :func:`~so101sim.model.load.load_model` compiled from a file has one (its source is known), or
 a model equal to one (a copy of it, or the same file compiled by the user: found by a cheap
-signature, then checked whole); for any other model :func:`contact_twin` returns None and callers fall back to their own
-means. The fields a user may change after loading (:data:`_SYNCED`: gains, limits, masses,
+signature, then checked whole); for any other model :func:`contact_twin` returns None and
+callers fall back to their own means. The fields a user may change after loading (:data:`_SYNCED`: gains, limits, masses,
 geometry, friction, margins, the options) are copied into the twin before each use; a
 change to any other field after the twin was made is not seen by it.
 """
