@@ -40,9 +40,7 @@ def _record(cls, poses):
         [EVERY_JOINT, INTO_FLOOR, EVERY_JOINT, STARTING_POSE],
     ],
 )
-def test_the_state_recorder_gives_the_step_recorders_samples_bit_for_bit(
-    poses, path, monkeypatch
-):
+def test_the_state_recorder_gives_the_step_recorders_samples_bit_for_bit(poses, path, monkeypatch):
     """Both contact paths: the kernel's contact twin (the shipped model: each step's contact
     count from a contact sensor), and the screen (a model with no twin)."""
     from so101sim.sim import stepping

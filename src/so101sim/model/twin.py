@@ -9,9 +9,10 @@ but the sensors' and the file paths' must be equal, else there is no twin). Only
 :func:`~so101sim.model.load.load_model` compiled from a file has one (its source is known), or
 a model equal to one (a copy of it, or the same file compiled by the user: found by a cheap
 signature, then checked whole); for any other model :func:`contact_twin` returns None and
-callers fall back to their own means. The fields a user may change after loading (:data:`_SYNCED`: gains, limits, masses,
-geometry, friction, margins, the options) are copied into the twin before each use; a
-change to any other field after the twin was made is not seen by it.
+callers fall back to their own means. The fields a user may change after loading
+(:data:`_SYNCED`: gains, limits, masses, geometry, friction, margins, the options) are copied
+into the twin before each use; a change to any other field after the twin was made is not
+seen by it.
 """
 
 from __future__ import annotations
@@ -144,9 +145,7 @@ def _same_physics(m: mujoco.MjModel, tw: mujoco.MjModel) -> bool:
         b = getattr(tw, name)
         if a.shape != b.shape or not np.array_equal(a, b, equal_nan=True):
             return False
-    return all(
-        np.array_equal(getattr(m.opt, n), getattr(tw.opt, n)) for n in _OPT
-    )
+    return all(np.array_equal(getattr(m.opt, n), getattr(tw.opt, n)) for n in _OPT)
 
 
 __all__ = ["Twin", "contact_twin"]
