@@ -242,6 +242,8 @@ def _by_joint(samples: np.ndarray) -> np.ndarray:
 def _run_lengths(above: np.ndarray) -> np.ndarray:
     """Per joint (row) and sample (column): how many consecutive samples up to it have been
     True."""
+    if not above.any():  # nothing saturated: no run anywhere
+        return np.zeros(above.shape, dtype=int)
     idx = np.arange(1, above.shape[1] + 1)[None, :]
     last_false = np.maximum.accumulate(np.where(above, 0, idx), axis=1)
     return (idx - last_false).astype(int)

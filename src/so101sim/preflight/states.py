@@ -23,6 +23,8 @@ the first step, one after each step), for :func:`~so101sim.preflight.measure.col
 
 from __future__ import annotations
 
+import weakref
+
 import mujoco
 import numpy as np
 
@@ -30,11 +32,33 @@ from ..model.load import arm_index
 from ..sim.stepping import Observer, Trace
 from .screen import contacts_at, record_contacts
 
+_VECTORISABLE_FIELDS = (
+    "actuator_dyntype", "actuator_gaintype", "actuator_biastype", "actuator_trntype",
+    "actuator_trnid", "jnt_type", "actuator_damping", "actuator_armature",
+    "actuator_dampingpoly", "actuator_delay", "actuator_history",
+)  # fmt: skip
+_vectorisable: weakref.WeakKeyDictionary[mujoco.MjModel, tuple[bytes, bool]] = (
+    weakref.WeakKeyDictionary()
+)
+
 
 def vectorisable(m: mujoco.MjModel) -> bool:
     """Whether the arm's actuator forces follow from the states alone: position-style
     actuators (no activation, fixed gain, affine or no bias) on a hinge or slide joint, with
-    no actuator damping, armature, delay or history, and actuation enabled."""
+    no actuator damping, armature, delay or history, and actuation enabled (worked out again
+    only when one of the fields it reads changed)."""
+    key = b"".join(
+        getattr(m, name).tobytes() for name in _VECTORISABLE_FIELDS if hasattr(m, name)
+    ) + int(m.opt.disableflags).to_bytes(4, "little")
+    known = _vectorisable.get(m)
+    if known is not None and known[0] == key:
+        return known[1]
+    result = _vectorisable_now(m)
+    _vectorisable[m] = (key, result)
+    return result
+
+
+def _vectorisable_now(m: mujoco.MjModel) -> bool:
     act = arm_index(m).actuator
     if m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_ACTUATION):
         return False
@@ -76,17 +100,19 @@ def actuator_forces(
     clamp = not m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL)
     if clamp and m.actuator_ctrllimited[act].any():
         lo, hi = m.actuator_ctrlrange[act].T
-        limited = m.actuator_ctrllimited[act].astype(bool)
-        c = np.where(limited, np.clip(c, lo, hi), c)
+        lo = np.where(m.actuator_ctrllimited[act] != 0, lo, -np.inf)
+        hi = np.where(m.actuator_ctrllimited[act] != 0, hi, np.inf)
+        c = np.minimum(np.maximum(c, lo), hi)  # np.clip, faster
     gain = m.actuator_gainprm[act, 0]
     prm = m.actuator_biasprm[act]
     affine = m.actuator_biastype[act] == mujoco.mjtBias.mjBIAS_AFFINE
     bias = np.where(affine, prm[:, 0] + prm[:, 1] * length + prm[:, 2] * velocity, 0.0)
     force = gain * c + bias
-    limited = m.actuator_forcelimited[act].astype(bool)
+    limited = m.actuator_forcelimited[act] != 0
     if limited.any():
         lo, hi = m.actuator_forcerange[act].T
-        force = np.where(limited, np.clip(force, lo, hi), force)
+        lo, hi = np.where(limited, lo, -np.inf), np.where(limited, hi, np.inf)
+        force = np.minimum(np.maximum(force, lo), hi)
     return force
 
 
