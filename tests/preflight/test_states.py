@@ -167,7 +167,42 @@ def test_a_model_with_no_source_has_no_twin_and_a_copy_of_one_has():
     m = load_model()
     assert contact_twin(copy.copy(m)) is not None  # the same model: found by its signature
     other = copy.copy(m)
-    other.body_mass[2] += 0.1  # not the loaded model any more
+    other.body_pos[2, 0] += 0.01  # a field the twin copies from the model before each use
+    assert contact_twin(other) is not None
+    assert np.array_equal(contact_twin(other).model.body_pos, other.body_pos)
+    other.jnt_stiffness[0] += 1.0  # synced too, after the twin was made
+    assert contact_twin(other).model.jnt_stiffness[0] == other.jnt_stiffness[0]
+    other = copy.copy(m)
+    other.dof_invweight0[0] += 1.0  # not synced: a different model, no twin
     assert contact_twin(other) is None
     xml = "<mujoco><worldbody><geom type='plane' size='1 1 1'/></worldbody></mujoco>"
     assert contact_twin(mujoco.MjModel.from_xml_string(xml)) is None
+
+
+def test_a_changed_model_gives_the_step_recorders_samples_on_its_twin():
+    """A copy of the loaded model with other gains and heavier links (fields the twin copies
+    before each use), changed again after the first segment: the same samples and physics."""
+    import copy
+
+    from so101sim.model import load_model
+    from so101sim.model.twin import contact_twin
+
+    def run(cls):
+        m = copy.copy(load_model())
+        m.actuator_gainprm[1, 0] *= 0.5
+        m.actuator_biasprm[1, 1] *= 0.5
+        sim = Simulation(m)
+        recs = [cls(m), cls(m)]
+        sim.move_to(INTO_FLOOR, 0.8, observers=[recs[0]], trace=True)
+        m.body_mass[3] *= 1.5
+        sim.move_to(STARTING_POSE, 0.8, observers=[recs[1]], trace=True)
+        return sim, recs
+
+    a, steps = run(StepRecorder)
+    b, states = run(StateRecorder)
+    assert contact_twin(b.model) is not None
+    assert np.array_equal(a.data.qpos, b.data.qpos)
+    for s, v in zip(steps, states, strict=True):
+        assert np.array_equal(np.array(s.forces), v.forces)
+        assert s.contacts == v.contacts
+    assert sum(len(v.contacts) for v in states) > 0

@@ -5,7 +5,8 @@ the step found, at no Python cost.
 
 Sensors read the state; they do not change it: the twin's physics is the model's, bit for
 bit (checked once per model when the twin is made: every array of the two compiled models
-but the sensors' and the file paths' must be equal, else there is no twin). Only a model
+but the sensors', the file paths' and those synced below must be equal, else there is no
+twin). Only a model
 :func:`~so101sim.model.load.load_model` compiled from a file has one (its source is known), or
 a model equal to one (a copy of it, or the same file compiled by the user: found by a cheap
 signature, then checked whole); for any other model :func:`contact_twin` returns None and
@@ -36,6 +37,9 @@ _SYNCED = (
     "geom_aabb", "geom_friction", "geom_margin", "geom_gap", "geom_contype",
     "geom_conaffinity", "geom_solref", "geom_solimp", "geom_solmix", "geom_priority",
     "geom_condim", "jnt_pos", "jnt_axis", "pair_margin", "pair_gap", "eq_active0",
+    "actuator_dynprm", "actuator_dyntype", "actuator_gaintype", "actuator_biastype",
+    "actuator_actlimited", "actuator_actrange", "dof_solref", "dof_solimp", "jnt_solref",
+    "jnt_solimp", "jnt_margin", "eq_data", "eq_solref", "eq_solimp", "geom_rgba",
 )  # fmt: skip
 """Model fields a user may change after load: copied into the twin before each use."""
 _OPT = (
@@ -110,8 +114,11 @@ def _make(m: mujoco.MjModel) -> Twin | None:
 
 
 def _signature(m: mujoco.MjModel) -> tuple:
-    """A cheap look at a model's sizes and masses: two models that differ here differ."""
-    return (m.nq, m.nv, m.nu, m.nbody, m.ngeom, m.nmesh, m.body_mass.tobytes())
+    """A cheap look at a model's structure: two models that differ here differ."""
+    return (
+        m.nq, m.nv, m.nu, m.nbody, m.ngeom, m.nmesh, m.body_parentid.tobytes(),
+        m.geom_type.tobytes(), m.geom_dataid.tobytes(),
+    )  # fmt: skip
 
 
 def _from_file(m: mujoco.MjModel, path: Path) -> Twin | None:
@@ -128,16 +135,19 @@ def _from_file(m: mujoco.MjModel, path: Path) -> Twin | None:
     if not _same_physics(m, tw):
         return None
     views = [(getattr(tw, n), getattr(m, n)) for n in _SYNCED if hasattr(m, n)]
-    return Twin(tw, mujoco.MjData(tw), int(tw.sensor_adr[tw.nsensor - 1]), views)
+    twin = Twin(tw, mujoco.MjData(tw), int(tw.sensor_adr[tw.nsensor - 1]), views)
+    twin.sync(m)
+    return twin
 
 
 def _same_physics(m: mujoco.MjModel, tw: mujoco.MjModel) -> bool:
-    """Whether every array of the two models but the sensors' (and names and paths) is equal:
+    """Whether every array of the two models but the sensors' (and names and paths) is equal,
+    or one the twin copies from the model before each use (:data:`_SYNCED`, the options):
     the same physics."""
     if tw.nsensor != m.nsensor + 1:
         return False
     for name in dir(m):
-        if name.startswith("_") or name.startswith(_IGNORED):
+        if name.startswith("_") or name.startswith(_IGNORED) or name in _SYNCED:
             continue
         a = getattr(m, name)
         if not isinstance(a, np.ndarray):
