@@ -130,8 +130,9 @@ def test_the_screen_never_clears_a_pair_that_touches(seed):
 
 def test_the_contact_twin_has_the_models_physics_bit_for_bit():
     """Stepped for thousands of steps with the same targets, the twin (the model with a
-    contact sensor) and the model end in the same state; its sensor counts each step's
-    contacts as the model's own step finds them (self-contact and the floor included)."""
+    contact sensor and force sensors) and the model end in the same state; its sensors count
+    each step's contacts as the model's own step finds them (self-contact and the floor
+    included) and give the model's actuator forces."""
     import mujoco
 
     from so101sim.model.twin import contact_twin
@@ -139,7 +140,7 @@ def test_the_contact_twin_has_the_models_physics_bit_for_bit():
     sim = Simulation()
     m = sim.model
     twin = contact_twin(m)
-    assert twin is not None and twin.model.nsensordata == m.nsensordata + 1
+    assert twin is not None and twin.model.nsensordata == m.nsensordata + 1 + m.nu
     d, td = mujoco.MjData(m), mujoco.MjData(twin.model)
     rng = np.random.default_rng(3)
     lo, hi = m.actuator_ctrlrange.T
@@ -151,6 +152,7 @@ def test_the_contact_twin_has_the_models_physics_bit_for_bit():
         mujoco.mj_step(m, d)
         mujoco.mj_step(twin.model, td)
         assert td.sensordata[twin.found] == d.ncon
+        assert np.array_equal(td.sensordata[twin.forces], d.actuator_force)
         touched += d.ncon > 0
     assert np.array_equal(d.qpos, td.qpos) and np.array_equal(d.qvel, td.qvel)
     assert touched > 0

@@ -1,7 +1,8 @@
 """A model's contact twin: the same model compiled again from its MJCF file with one
 ``contact`` sensor added (MuJoCo's ``mjSENS_CONTACT``, ``data="found"``, matching every
-contact), so a block stepped in C (``mujoco.rollout``) reports, per step, how many contacts
-the step found, at no Python cost.
+contact) and one ``actuatorfrc`` sensor per actuator, so a block stepped in C
+(``mujoco.rollout``) reports, per step, how many contacts the step found and the force each
+actuator applied, at no Python cost.
 
 Sensors read the state; they do not change it: the twin's physics is the model's, bit for
 bit (checked once per model when the twin is made: every array of the two compiled models
@@ -59,6 +60,7 @@ class Twin:
     model: mujoco.MjModel
     data: mujoco.MjData
     found: int  # sensordata column of the contact count
+    forces: np.ndarray  # sensordata columns of each actuator's force, actuator order
     views: list[tuple[np.ndarray, np.ndarray]]  # (twin field, model field) pairs to sync
 
     def sync(self, m: mujoco.MjModel) -> None:
@@ -129,13 +131,26 @@ def _from_file(m: mujoco.MjModel, path: Path) -> Twin | None:
             type=mujoco.mjtSensor.mjSENS_CONTACT,
             intprm=[1, 0, 1],  # data="found", no reduction, one match slot
         )
+        for a, act in enumerate(spec.actuators):  # each actuator's force (actuatorfrc)
+            if not act.name:
+                act.name = f"so101sim_actuator_{a}"
+            spec.add_sensor(
+                name=f"so101sim_force_{a}",
+                type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+                objtype=mujoco.mjtObj.mjOBJ_ACTUATOR,
+                objname=act.name,
+            )
         tw = spec.compile()
     except (ValueError, mujoco.FatalError):
         return None
     if not _same_physics(m, tw):
         return None
     views = [(getattr(tw, n), getattr(m, n)) for n in _SYNCED if hasattr(m, n)]
-    twin = Twin(tw, mujoco.MjData(tw), int(tw.sensor_adr[tw.nsensor - 1]), views)
+    first = m.nsensor  # the added sensors come after the model's own
+    forces = tw.sensor_adr[first + 1 : first + 1 + m.nu].copy()
+    if not np.array_equal(tw.sensor_objid[first + 1 : first + 1 + m.nu], np.arange(m.nu)):
+        return None
+    twin = Twin(tw, mujoco.MjData(tw), int(tw.sensor_adr[first]), forces, views)
     twin.sync(m)
     return twin
 
@@ -144,7 +159,7 @@ def _same_physics(m: mujoco.MjModel, tw: mujoco.MjModel) -> bool:
     """Whether every array of the two models but the sensors' (and names and paths) is equal,
     or one the twin copies from the model before each use (:data:`_SYNCED`, the options):
     the same physics."""
-    if tw.nsensor != m.nsensor + 1:
+    if tw.nsensor != m.nsensor + 1 + m.nu:
         return False
     for name in dir(m):
         if name.startswith("_") or name.startswith(_IGNORED) or name in _SYNCED:

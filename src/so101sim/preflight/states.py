@@ -7,11 +7,13 @@ between steps (so the kernel steps whole blocks in C) and sees each block's stat
 :class:`~so101sim.preflight.measure.StepRecorder` gives, sample for sample (one sample before
 the first step, one after each step), for :func:`~so101sim.preflight.measure.collect`:
 
-* **forces**: the force each arm actuator applied during step i, from the target of step i and
-  the joint angle and velocity before it, with MuJoCo's affine actuator law (``gain * ctrl +
-  bias0 + bias1 * length + bias2 * velocity``, clamped to the force range), for position
-  actuators on a joint (:func:`vectorisable` says when; otherwise the lab helpers watch every
-  step with the step recorder, as before);
+* **forces**: the force each arm actuator applied during step i. Where the kernel stepped on
+  the model's contact twin (:mod:`so101sim.model.twin`), MuJoCo's own, recorded in C by the
+  twin's ``actuatorfrc`` sensors; otherwise from the target of step i and the joint angle and
+  velocity before it, with MuJoCo's affine actuator law (``gain * ctrl + bias0 + bias1 *
+  length + bias2 * velocity``, clamped to the force range), for position actuators on a joint
+  (:func:`vectorisable` says when; otherwise the lab helpers watch every step with the step
+  recorder, as before);
 * **contacts**: the contacts of step i are those of the positions before it (MuJoCo detects
   them before it integrates). Where the kernel stepped on the model's contact twin
   (:mod:`so101sim.model.twin`: the model loaded from a file, with a ``contact`` sensor), it
@@ -165,7 +167,10 @@ class StateRecorder(Observer):
         q_before = np.vstack([self._qpos[None], q[:-1]])
         v_before = np.vstack([self._qvel[None], v[:-1]])
         self._times.append(states[:, 0].copy())
-        self._forces.append(actuator_forces(self.m, trace.ctrl, q_before, v_before))
+        if trace.actuator_forces is not None:  # MuJoCo's own, recorded in C
+            self._forces.append(trace.actuator_forces[:, self.act])
+        else:
+            self._forces.append(actuator_forces(self.m, trace.ctrl, q_before, v_before))
         if trace.contact_counts is not None:
             self._contacts_where(trace.contact_counts, q_before, states[:, 0])
         else:

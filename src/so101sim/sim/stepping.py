@@ -141,11 +141,12 @@ def _step_block(
     s0: np.ndarray,
     sensordata: np.ndarray | None = None,
     counts: np.ndarray | None = None,
+    forces: np.ndarray | None = None,
 ) -> np.ndarray:
     """Take ``len(ctrl_full)`` steps from the state ``s0`` (that of ``d``), applying row i of
     ``ctrl_full`` (all actuators) during step i; return the state after each step
     (FULLPHYSICS layout), and fill ``sensordata`` (one row per step) if given, ``counts``
-    (each step's ``ncon``; the loop only) if given."""
+    and ``forces`` (each step's ``ncon`` and ``actuator_force``; the loop only) if given."""
     k = len(ctrl_full)
     states = np.empty((k, len(s0)))
     if k >= _ROLLOUT_MIN_STEPS and counts is None:
@@ -174,6 +175,8 @@ def _step_block(
                 sensordata[i] = d.sensordata
             if counts is not None:
                 counts[i] = d.ncon
+            if forces is not None:
+                forces[i] = d.actuator_force
     return states
 
 
@@ -184,11 +187,13 @@ def _step_twin(
     ctrl_full: np.ndarray,
     s0: np.ndarray,
     counts: np.ndarray,
+    forces: np.ndarray | None,
 ) -> np.ndarray:
     """:func:`_step_block` on ``m``'s contact twin (:mod:`so101sim.model.twin`), filling
-    ``counts`` with each step's contact count: all steps but the last in C on the twin (the
-    same physics, bit for bit), from ``d``'s whole state; the last one on ``(m, d)`` itself
-    from the state and warm start before it, so ``d`` ends exactly as a plain block leaves it
+    ``counts`` with each step's contact count (and ``forces`` with its actuator forces): all
+    steps but the last in C on the twin (the same physics, bit for bit), from ``d``'s whole
+    state; the last one on ``(m, d)`` itself from the state and warm start before it, so
+    ``d`` ends exactly as a plain block leaves it
     (its contacts, forces and sensors those of the last step)."""
     k = len(ctrl_full)
     tm, td = twin.model, twin.data
@@ -213,6 +218,8 @@ def _step_twin(
         sensordata=sensordata,
     )
     counts[: k - 1] = sensordata[0, :, twin.found]
+    if forces is not None:
+        forces[: k - 1] = sensordata[0][:, twin.forces]
     mujoco.mj_setState(m, d, states[k - 2], _STATE_SPEC)
     d.qacc_warmstart[:] = td.qacc_warmstart
     for w in _DIVERGENCE_WARNINGS:
@@ -221,6 +228,8 @@ def _step_twin(
     mujoco.mj_step(m, d)
     mujoco.mj_getState(m, d, states[k - 1], _STATE_SPEC)
     counts[k - 1] = d.ncon
+    if forces is not None:
+        forces[k - 1] = d.actuator_force
     return states
 
 
@@ -233,6 +242,7 @@ def step_block(
     scratch: np.ndarray | None = None,
     advice: str = ADVICE,
     contact_counts: np.ndarray | None = None,
+    actuator_forces: np.ndarray | None = None,
 ) -> np.ndarray:
     """The stepping kernel with every step recorded: ``len(ctrl_full)`` steps (at most a few
     thousand: callers cut longer runs into blocks) from ``d``'s state, applying row i of
@@ -245,7 +255,10 @@ def step_block(
     ``contact_counts`` (``(k,)``), if given, is filled with each step's contact count (the
     contacts MuJoCo found before integrating): a long block is then stepped on the model's
     contact twin (:mod:`so101sim.model.twin`, the same physics with a contact sensor); where
-    the model has none, it is filled with -1 (not recorded). Not with ``sensordata``.
+    the model has none, it is filled with -1 (not recorded). Not with ``sensordata``. With
+    it, ``actuator_forces`` (``(k, m.nu)``), if given, is filled with the force each actuator
+    applied during each step (``d.actuator_force``; the twin's ``actuatorfrc`` sensors), except
+    where the counts are -1.
 
     Raises:
         SimulationDivergedError: MuJoCo reported an unstable state, or the state is not finite;
@@ -260,14 +273,14 @@ def step_block(
         if contact_counts is None:
             states = _step_block(m, d, ctrl_full, s0, sensordata)
         elif len(ctrl_full) < _ROLLOUT_MIN_STEPS:  # a Python loop: d.ncon after each step
-            states = _step_block(m, d, ctrl_full, s0, None, contact_counts)
+            states = _step_block(m, d, ctrl_full, s0, None, contact_counts, actuator_forces)
         else:
             twin = contact_twin(m)
             if twin is None:
                 contact_counts[:] = -1
                 states = _step_block(m, d, ctrl_full, s0, None)
             else:
-                states = _step_twin(m, d, twin, ctrl_full, s0, contact_counts)
+                states = _step_twin(m, d, twin, ctrl_full, s0, contact_counts, actuator_forces)
         _check_divergence(m, d, states, s0, 1 + arm_index(m).qpos, advice)
     return states
 
@@ -385,15 +398,19 @@ def advance(
             ctrl_full = np.repeat(d.ctrl[None], k, axis=0)
             ctrl_full[:, idx.actuator] = targets[done : done + k]
             counts = np.empty(k) if counting else None
-            states = step_block(m, d, ctrl_full, scratch=s0, contact_counts=counts)
+            forces = np.empty((k, m.nu)) if counting else None
+            states = step_block(
+                m, d, ctrl_full, scratch=s0, contact_counts=counts, actuator_forces=forces
+            )
             if counts is not None and k and counts[0] < 0:
-                counts = None  # no contact twin: not recorded
+                counts = forces = None  # no contact twin: not recorded
             block = Trace(
                 states[:, 0],
                 targets[done : done + k],
                 states[:, qpos_cols],
                 states=states,
                 contact_counts=counts,
+                actuator_forces=forces,
             )
             if keep_trace:
                 times[done : done + k] = block.time
