@@ -39,6 +39,7 @@ import numpy as np
 
 from ..errors import JointValueError
 from ..model.load import default_units
+from ..model.twin import contact_twin
 from ..preflight.check import Thresholds, describe
 from ..preflight.judge import judge
 from ..preflight.measure import StepRecorder, collect
@@ -162,10 +163,12 @@ def _watched(
     in it (tracking error, saturated actuator, contact) with the time and the joint or bodies:
     the lab helpers say when a run went wrong. The figures come after the segment from the
     states the stepping kernel recorded, block by block in C (:class:`StateRecorder`,
-    vectorised); a model whose actuator forces do not follow from the states (not position
-    actuators on joints) is watched after every step instead (:class:`StepRecorder`)."""
+    vectorised, or MuJoCo's own from the model's sensor twin); a model with neither (actuator
+    forces that do not follow from the states, and no twin) is watched after every step
+    instead (:class:`StepRecorder`)."""
     rec: StateRecorder | StepRecorder
-    rec = StateRecorder(sim.model) if vectorisable(sim.model) else StepRecorder(sim.model)
+    exact = vectorisable(sim.model) or contact_twin(sim.model) is not None
+    rec = StateRecorder(sim.model) if exact else StepRecorder(sim.model)
     seg = run([rec])
     th = Thresholds()
     measured = collect(sim.model, [], [seg], rec, th.max_effort)

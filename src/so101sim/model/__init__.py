@@ -2,7 +2,8 @@
 
 May import: ``so101sim.errors``, ``so101sim.validation``, ``so101sim.units`` (and MuJoCo).
 Modules: :mod:`.load` (``load_model``, ``scene_path``, the arm's units and indices),
-:mod:`.cache` (compiled models kept between runs), :mod:`.trim` (the physics-only model).
+:mod:`.cache` (compiled models kept between runs), :mod:`.trim` (the physics-only model),
+:mod:`.twin` (a loaded model with a contact sensor, for the stepping kernel's contact counts).
 """
 
 from .load import (

@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import threading
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
@@ -27,6 +28,9 @@ log = logging.getLogger(__name__)
 
 _lock = threading.Lock()
 _cache: dict[tuple[str, int, bool, str], mujoco.MjModel] = {}
+# how each cached model's MjSpec is made (its file, with its arm profile applied): the model's
+# sensor twin (model/twin.py) is compiled from the same spec
+_spec_fns: dict[tuple[str, int, bool, str], Callable[[], mujoco.MjSpec]] = {}
 
 
 def model_dir() -> Path:
@@ -104,6 +108,7 @@ def load_model(
                 raise ModelError(f"model file {str(p)!r} does not compile: {exc}") from exc
             arm_index(model)  # fail now, not at the first command, if joints are missing
             _cache[key] = model
+            _spec_fns[key] = spec_fn
             log.debug("compiled %s with arm profile %s (nq=%d)", p, prof.name, model.nq)
     return model
 
@@ -185,6 +190,24 @@ def loaded_models() -> list[tuple[Path, mujoco.MjModel]]:
         return [
             (Path(p), model) for (p, _mtime, physics, _arm), model in _cache.items() if not physics
         ]
+
+
+def model_spec(model: mujoco.MjModel) -> Callable[[], mujoco.MjSpec] | None:
+    """How ``model``'s MjSpec is made (its file, with the arm profile :func:`load_model`
+    applied), if :func:`load_model` compiled it; else None. Each call of the result makes a
+    fresh spec."""
+    with _lock:
+        for key, cached in _cache.items():
+            if cached is model:
+                return _spec_fns.get(key)
+    return None
+
+
+def loaded_specs() -> list[tuple[Callable[[], mujoco.MjSpec], mujoco.MjModel]]:
+    """``(spec maker, model)`` for every full model :func:`load_model` has compiled in this
+    process (see :func:`model_spec`)."""
+    with _lock:
+        return [(_spec_fns[k], m) for k, m in _cache.items() if not k[2] and k in _spec_fns]
 
 
 def model_source(model: mujoco.MjModel) -> Path | None:

@@ -101,6 +101,12 @@ class Trace:
     # the blocks observers see: every step's whole state (FULLPHYSICS rows: time, qpos, qvel,
     # ...), as the kernel recorded it; None in the trace a run returns
     states: np.ndarray | None = None
+    # how many contacts each step found (MuJoCo's ``ncon`` before it integrated), for the
+    # observers that ask (:attr:`Observer.wants_contact_counts`); None where not recorded
+    contact_counts: np.ndarray | None = None
+    # with the counts: the force each actuator applied during each step (``(n, nu)``, all
+    # actuators, MuJoCo's ``actuator_force``); None where not recorded
+    actuator_forces: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.steps if self.steps >= 0 else len(self.time)
@@ -115,7 +121,12 @@ class Observer:
       (a viewer that was closed).
     * :meth:`on_steps`: each block of steps, as they are taken, with the phase's name.
     * :meth:`on_start`: once before each run of steps, with the live model and data.
+    * :attr:`wants_contact_counts`: True to get each step's contact count and actuator forces
+      in the blocks (:attr:`Trace.contact_counts`, :attr:`Trace.actuator_forces`, where the
+      kernel can record them).
     """
+
+    wants_contact_counts: bool = False
 
     def on_start(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
         return None

@@ -600,7 +600,9 @@ class _ErrorTracker(Observer):
     def on_steps(self, trace: Trace, phase: str) -> None:
         commanded = self.units.from_radians(trace.ctrl)
         measured = self.units.from_radians(trace.qpos)
-        self.max = np.maximum(self.max, np.abs(commanded - measured).max(axis=0))
+        # along contiguous rows: NumPy reduces them several times faster than columns
+        error = np.ascontiguousarray(np.abs(commanded - measured).T)
+        self.max = np.maximum(self.max, error.max(axis=1))
         self.last = commanded[-1]
 
 

@@ -37,6 +37,7 @@ from mujoco import rollout as _rollout
 from ..errors import SimulationDivergedError
 from ..exitgate import mujoco_call
 from ..model.load import arm_index
+from ..model.twin import Twin, contact_twin
 from .observers import (  # the kernel's observers, importable from here as before
     MAX_PLAYBACK_SPEED,
     MAX_VIEWER_PERIOD,
@@ -139,13 +140,16 @@ def _step_block(
     ctrl_full: np.ndarray,
     s0: np.ndarray,
     sensordata: np.ndarray | None = None,
+    counts: np.ndarray | None = None,
+    forces: np.ndarray | None = None,
 ) -> np.ndarray:
     """Take ``len(ctrl_full)`` steps from the state ``s0`` (that of ``d``), applying row i of
     ``ctrl_full`` (all actuators) during step i; return the state after each step
-    (FULLPHYSICS layout), and fill ``sensordata`` (one row per step) if given."""
+    (FULLPHYSICS layout), and fill ``sensordata`` (one row per step) if given, ``counts``
+    and ``forces`` (each step's ``ncon`` and ``actuator_force``; the loop only) if given."""
     k = len(ctrl_full)
     states = np.empty((k, len(s0)))
-    if k >= _ROLLOUT_MIN_STEPS:
+    if k >= _ROLLOUT_MIN_STEPS and counts is None:
         _runner().rollout(
             [m],
             [d],
@@ -169,6 +173,63 @@ def _step_block(
             mujoco.mj_getState(m, d, states[i], _STATE_SPEC)
             if sensordata is not None:
                 sensordata[i] = d.sensordata
+            if counts is not None:
+                counts[i] = d.ncon
+            if forces is not None:
+                forces[i] = d.actuator_force
+    return states
+
+
+def _step_twin(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    twin: Twin,
+    ctrl_full: np.ndarray,
+    s0: np.ndarray,
+    counts: np.ndarray,
+    forces: np.ndarray | None,
+) -> np.ndarray:
+    """:func:`_step_block` on ``m``'s contact twin (:mod:`so101sim.model.twin`), filling
+    ``counts`` with each step's contact count (and ``forces`` with its actuator forces): all
+    steps but the last in C on the twin (the same physics, bit for bit), from ``d``'s whole
+    state; the last one on ``(m, d)`` itself from the state and warm start before it, so
+    ``d`` ends exactly as a plain block leaves it
+    (its contacts, forces and sensors those of the last step)."""
+    k = len(ctrl_full)
+    tm, td = twin.model, twin.data
+    full = mujoco.mjtState.mjSTATE_INTEGRATION
+    buf = np.empty(mujoco.mj_stateSize(m, full))
+    mujoco.mj_getState(m, d, buf, full)  # mocap, applied forces, equality flags, user data
+    mujoco.mj_setState(tm, td, buf, full)
+    for w in _DIVERGENCE_WARNINGS:
+        td.warning[w].number = 0
+    states = np.empty((k, len(s0)))
+    sensordata = np.empty((1, k - 1, tm.nsensordata))
+    _runner().rollout(
+        [tm],
+        [td],
+        s0[None],
+        np.ascontiguousarray(ctrl_full[None, : k - 1]),
+        control_spec=mujoco.mjtState.mjSTATE_CTRL.value,
+        skip_checks=True,
+        nstep=k - 1,
+        initial_warmstart=d.qacc_warmstart[None].copy(),
+        state=states[None, : k - 1],
+        sensordata=sensordata,
+    )
+    counts[: k - 1] = sensordata[0, :, twin.found]
+    if forces is not None:
+        forces[: k - 1] = sensordata[0][:, twin.forces]
+    mujoco.mj_setState(m, d, states[k - 2], _STATE_SPEC)
+    d.qacc_warmstart[:] = td.qacc_warmstart
+    for w in _DIVERGENCE_WARNINGS:
+        d.warning[w].number += td.warning[w].number
+    d.ctrl[:] = ctrl_full[-1]
+    mujoco.mj_step(m, d)
+    mujoco.mj_getState(m, d, states[k - 1], _STATE_SPEC)
+    counts[k - 1] = d.ncon
+    if forces is not None:
+        forces[k - 1] = d.actuator_force
     return states
 
 
@@ -180,6 +241,8 @@ def step_block(
     sensordata: np.ndarray | None = None,
     scratch: np.ndarray | None = None,
     advice: str = ADVICE,
+    contact_counts: np.ndarray | None = None,
+    actuator_forces: np.ndarray | None = None,
 ) -> np.ndarray:
     """The stepping kernel with every step recorded: ``len(ctrl_full)`` steps (at most a few
     thousand: callers cut longer runs into blocks) from ``d``'s state, applying row i of
@@ -188,6 +251,14 @@ def step_block(
     exit gate, then the one divergence check. Returns the state after each step (FULLPHYSICS
     layout: time, qpos, qvel, ...) and fills ``sensordata`` (``(k, m.nsensordata)``) if given.
     ``d`` is left holding the last step's result.
+
+    ``contact_counts`` (``(k,)``), if given, is filled with each step's contact count (the
+    contacts MuJoCo found before integrating): a long block is then stepped on the model's
+    contact twin (:mod:`so101sim.model.twin`, the same physics with a contact sensor); where
+    the model has none, it is filled with -1 (not recorded). Not with ``sensordata``. With
+    it, ``actuator_forces`` (``(k, m.nu)``), if given, is filled with the force each actuator
+    applied during each step (``d.actuator_force``; the twin's ``actuatorfrc`` sensors), except
+    where the counts are -1.
 
     Raises:
         SimulationDivergedError: MuJoCo reported an unstable state, or the state is not finite;
@@ -199,7 +270,17 @@ def step_block(
         d.warning[w].number = 0
     with mujoco_call():  # refused once the interpreter exits (exitgate)
         mujoco.mj_getState(m, d, s0, _STATE_SPEC)
-        states = _step_block(m, d, ctrl_full, s0, sensordata)
+        if contact_counts is None:
+            states = _step_block(m, d, ctrl_full, s0, sensordata)
+        elif len(ctrl_full) < _ROLLOUT_MIN_STEPS:  # a Python loop: d.ncon after each step
+            states = _step_block(m, d, ctrl_full, s0, None, contact_counts, actuator_forces)
+        else:
+            twin = contact_twin(m)
+            if twin is None:
+                contact_counts[:] = -1
+                states = _step_block(m, d, ctrl_full, s0, None)
+            else:
+                states = _step_twin(m, d, twin, ctrl_full, s0, contact_counts, actuator_forces)
         _check_divergence(m, d, states, s0, 1 + arm_index(m).qpos, advice)
     return states
 
@@ -308,6 +389,7 @@ def advance(
     done = 0
     completed = True
     s0 = np.empty(state_size(m))
+    counting = any(getattr(o, "wants_contact_counts", False) for o in observers)
     for o in observers:
         o.on_start(m, d)
     while done < n:
@@ -315,9 +397,20 @@ def advance(
         if k:
             ctrl_full = np.repeat(d.ctrl[None], k, axis=0)
             ctrl_full[:, idx.actuator] = targets[done : done + k]
-            states = step_block(m, d, ctrl_full, scratch=s0)
+            counts = np.empty(k) if counting else None
+            forces = np.empty((k, m.nu)) if counting else None
+            states = step_block(
+                m, d, ctrl_full, scratch=s0, contact_counts=counts, actuator_forces=forces
+            )
+            if counts is not None and k and counts[0] < 0:
+                counts = forces = None  # no contact twin: not recorded
             block = Trace(
-                states[:, 0], targets[done : done + k], states[:, qpos_cols], states=states
+                states[:, 0],
+                targets[done : done + k],
+                states[:, qpos_cols],
+                states=states,
+                contact_counts=counts,
+                actuator_forces=forces,
             )
             if keep_trace:
                 times[done : done + k] = block.time
