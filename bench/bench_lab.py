@@ -89,8 +89,11 @@ def lab_targets(sim: Simulation) -> np.ndarray:
     return np.concatenate(blocks)
 
 
+ARM = "official"  # --arm: the handout's model (the file as is) by default
+
+
 def fresh() -> Simulation:
-    return Simulation()
+    return Simulation(arm=ARM)
 
 
 def raw_same_motion(targets: np.ndarray, block: int = 50):
@@ -161,7 +164,16 @@ def lab_helpers(_targets):
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument(
+        "--arm",
+        default="official",
+        help="the servos' model: official (default: the file's own actuators, the model a "
+        "student's mujoco.MjModel.from_xml_path(scene_path()) gets) or sts3215 (so101sim's "
+        "default arm)",
+    )
     args = ap.parse_args()
+    global ARM
+    ARM = args.arm
     default_units()
     targets = lab_targets(fresh())
     n = len(targets)
@@ -180,7 +192,9 @@ def main() -> None:
         for name, fn in variants.items():
             best[name] = min(best[name], fn())
     base = best["raw mj_step(nstep), same motion"]
-    print(f"lab motion: {n} physics steps (6 s at dt 0.002), best of {args.repeats}")
+    print(
+        f"lab motion: {n} physics steps (6 s at dt 0.002), best of {args.repeats}, arm {args.arm}"
+    )
     print(f"{'variant':42s} {'µs/step':>9s} {'× raw':>7s}")
     for name, t in best.items():
         print(f"{name:42s} {t / n * 1e6:9.2f} {t / base:7.2f}")
