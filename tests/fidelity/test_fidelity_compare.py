@@ -125,7 +125,7 @@ def test_a_csv_log_is_compared(tmp_path, episodes, true_toml):
 
 
 def test_bad_inputs_say_what_is_wrong(tmp_path, capsys):
-    with pytest.raises(LogError, match="neither a LeRobot dataset"):
+    with pytest.raises(LogError, match=r"does not exist|neither a LeRobot dataset"):
         read_log(tmp_path / "nothing", default_units())
     (tmp_path / "ds" / "meta").mkdir(parents=True)
     (tmp_path / "ds" / "meta" / "info.json").write_text(json.dumps({"fps": 30, "features": {}}))
@@ -136,7 +136,7 @@ def test_bad_inputs_say_what_is_wrong(tmp_path, capsys):
         with pytest.raises(Exception, match="--episodes"):
             parse_episodes(bad)
     assert main(["compare", str(tmp_path / "nothing")]) == 2
-    assert "neither a LeRobot dataset" in capsys.readouterr().err
+    assert "does not exist; expected a LeRobot dataset" in capsys.readouterr().err
 
 
 def test_a_missing_optional_package_says_what_to_install(tmp_path, episodes, monkeypatch):

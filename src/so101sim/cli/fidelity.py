@@ -88,7 +88,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from ..fidelity.logs import parse_episodes
     from ..recording.paths import check_output_path
 
-    episodes = parse_episodes(args.episodes) if args.episodes else None
+    episodes = parse_episodes(args.episodes) if args.episodes is not None else None
     if args.plot is not None:
         check_output_path(args.plot, force=args.force, what="plot", suffixes=(".png",))
     result = compare(
@@ -136,7 +136,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     from ..recording.paths import check_output_path, write_atomically
 
     out = check_output_path(args.output, force=args.force, what="profile", suffixes=(".toml",))
-    episodes = parse_episodes(args.episodes) if args.episodes else None
+    episodes = parse_episodes(args.episodes) if args.episodes is not None else None
     result = fit(
         args.logs,
         arm=args.arm,

@@ -35,6 +35,8 @@ from .logs import ArmLog, Episode, read_log
 
 log = logging.getLogger(__name__)
 
+MAX_THREADS = 256  # threads for the parallel rollouts (one MjData each)
+
 __all__ = ["FIT_NAMES", "ArmReplayer", "FitResult", "fit"]
 
 FIT_NAMES: tuple[str, ...] = (
@@ -92,7 +94,9 @@ class ArmReplayer:
         self.model = spec.compile()
         self.index = arm_index(self.model)
         self.units: ArmUnits = arm_units(self.model)
-        self.threads = threads or min(8, os.cpu_count() or 1)
+        self.threads = check_count(
+            threads or min(8, os.cpu_count() or 1), "threads", minimum=1, maximum=MAX_THREADS
+        )
         self._models: list[mujoco.MjModel] = []
 
     def _batch_models(self, n: int) -> list[mujoco.MjModel]:
@@ -219,6 +223,8 @@ def fit(
     if unknown:
         raise SettingError(f"unknown joint {unknown[0]!r}; expected {', '.join(JOINT_NAMES)}")
     max_evaluations = check_count(max_evaluations, "max_evaluations", minimum=1, maximum=10_000)
+    if threads is not None:  # one MjData per thread: bounded before anything is allocated
+        threads = check_count(threads, "threads", minimum=1, maximum=MAX_THREADS)
     replayer_units = arm_units(_plain_model(model))
     eps: list[Episode] = []
     for item in logs:

@@ -80,6 +80,8 @@ def parse_episodes(text: str, *, limit: int = MAX_EPISODES) -> list[int]:
     Raises:
         SettingError: not a list of whole numbers and ranges.
     """
+    if not str(text).strip():
+        raise SettingError("--episodes is empty; expected episodes such as 0-1,3 (or leave it out)")
     out: set[int] = set()
     for part in str(text).split(","):
         part = part.strip()
@@ -120,7 +122,14 @@ def read_log(
         LogError: the path is neither, or lacks what is needed.
         MissingDependencyError: pyarrow is needed and missing.
     """
+    if not str(path).strip():
+        raise LogError("the log path is empty; expected a LeRobot dataset folder or a CSV log")
     p = Path(path).expanduser()
+    if not p.exists():
+        raise LogError(
+            f"log {str(p)!r} does not exist; expected a LeRobot dataset folder "
+            "(meta/info.json and data/*.parquet) or a so101sim CSV log (.csv)"
+        )
     if units not in ("auto", "degrees", "range"):
         raise LogError(f"units = {units!r} is invalid; expected auto, degrees or range")
     if units == "degrees" and calibration is not None:
@@ -172,6 +181,14 @@ def _read_lerobot(
         ) from None
     except (OSError, ValueError) as exc:
         raise LogError(f"{str(info_path)!r} cannot be read: {exc}") from exc
+    feats = info.get("features", {}) if isinstance(info, dict) else None
+    if not isinstance(feats, dict) or not all(
+        isinstance(feats.get(k, {}), dict) for k in ("action", "observation.state")
+    ):
+        raise LogError(
+            f"{str(info_path)!r} is not a LeRobot info.json: expected an object whose "
+            "'features' map names ('action', 'observation.state') to objects"
+        )
     version = str(info.get("codebase_version", "v3.0"))
     fps = info.get("fps")
     if not isinstance(fps, int | float) or not 0 < fps <= 10_000:
@@ -209,9 +226,16 @@ def _read_lerobot(
     if act.ndim != 2 or obs.ndim != 2:
         raise LogError(f"{str(root)!r}: action/observation.state are not vectors per frame")
     act, obs = act[:, order_a], obs[:, order_s]
+    if not (np.isfinite(act).all() and np.isfinite(obs).all()):
+        raise LogError(
+            f"{str(root)!r}: action or observation.state holds values that are not finite "
+            "numbers (NaN or infinity); expected joint positions"
+        )
     ep = np.concatenate(parts["episode_index"]).astype(int)
     fr = np.concatenate(parts["frame_index"]).astype(int)
     ts = np.concatenate(parts["timestamp"]) if parts["timestamp"] else fr / float(fps)
+    if not np.isfinite(ts).all():
+        raise LogError(f"{str(root)!r}: a timestamp is not a finite number; expected seconds")
     warnings: list[str] = []
     act, obs = _to_arm_units(act, obs, mode, units, calibration, warnings)
     available = sorted(set(ep.tolist()))
@@ -368,12 +392,26 @@ def _read_csv(path: Path, episodes: list[int] | None) -> ArmLog:
             for i, row in enumerate(reader):
                 if i >= MAX_FRAMES:
                     raise LogError(f"CSV log {str(path)!r} has more than {MAX_FRAMES} rows")
-                rows.append([float(row[c]) for c in need_cols])
+                values = [row.get(c) for c in need_cols]
+                if any(v is None for v in values):
+                    raise LogError(
+                        f"CSV log {str(path)!r}: row {i + 2} has fewer fields than the header; "
+                        "expected a log written by so101sim (--log)"
+                    )
+                rows.append([float(v) for v in values])
+    except LogError:
+        raise
     except (OSError, ValueError, UnicodeDecodeError) as exc:
         raise LogError(f"CSV log {str(path)!r} cannot be read: {exc}") from exc
     if len(rows) < 2:
         raise LogError(f"CSV log {str(path)!r} has fewer than two rows")
     a = np.array(rows)
+    if not np.isfinite(a).all():
+        row = int(np.flatnonzero(~np.isfinite(a).all(axis=1))[0]) + 2
+        raise LogError(
+            f"CSV log {str(path)!r}: row {row} holds a value that is not a finite number (NaN or "
+            "infinity); expected times, commands and measurements"
+        )
     _choose([0], episodes, str(path))
     t = a[:, 0] - a[0, 0]
     cmd = a[:, 1::2][:, : len(JOINT_NAMES)]
