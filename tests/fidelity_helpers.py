@@ -107,13 +107,22 @@ def write_lerobot(root: Path, episodes: list[Episode], *, version: str = "v3.0",
 
 
 def write_csv(path: Path, ep: Episode) -> Path:
-    """A so101sim CSV log of one episode."""
+    """A so101sim CSV log of one episode, as so101sim's --log writes it: each row's measurement
+    is the state after its command acted (the episode's next measured state), after a first
+    row holding the starting state; read back, it is the episode less its last frame."""
     cols = ["time", "phase"]
-    cols += [f"{n}_commanded" for n in JOINT_NAMES] + [f"{n}_measured" for n in JOINT_NAMES]
+    for n in JOINT_NAMES:
+        cols += [f"{n}_commanded", f"{n}_measured"]
     lines = [",".join(cols)]
-    for k in range(len(ep.times)):
-        vals = [f"{ep.times[k]:.4f}", "replay"]
-        vals += [f"{v:.6f}" for v in ep.command[k]] + [f"{v:.6f}" for v in ep.measured[k]]
+    dt = float(ep.times[1] - ep.times[0])
+    rows = [(float(ep.times[0]) - dt, ep.command[0], ep.measured[0])]
+    rows += [
+        (float(ep.times[k]), ep.command[k], ep.measured[k + 1]) for k in range(len(ep.times) - 1)
+    ]
+    for t, cmd, meas in rows:
+        vals = [f"{t:.4f}", "replay"]
+        for j in range(len(JOINT_NAMES)):
+            vals += [f"{cmd[j]:.6f}", f"{meas[j]:.6f}"]
         lines.append(",".join(vals))
     path.write_text("\n".join(lines) + "\n")
     return path

@@ -120,7 +120,7 @@ def test_cli_json_is_one_object_on_stdout(tmp_path, episodes, true_toml, capsys)
 def test_a_csv_log_is_compared(tmp_path, episodes, true_toml):
     path = write_csv(tmp_path / "run.csv", episodes[0])
     res = compare(path, arm=true_toml)
-    assert res.episodes == [0] and res.frames == len(episodes[0].times)
+    assert res.episodes == [0] and res.frames == len(episodes[0].times) - 1  # the log: one less
     assert max(e.mae for e in res.joints.values()) < 0.1
 
 
@@ -149,4 +149,4 @@ def test_a_missing_optional_package_says_what_to_install(tmp_path, episodes, mon
     with pytest.raises(MissingDependencyError, match=r"so101sim\[fidelity\]"):
         read_log(root, default_units(), units="degrees")
     # a CSV log needs no optional package
-    assert compare(write_csv(tmp_path / "e.csv", episodes[0])).frames == len(episodes[0].times)
+    assert compare(write_csv(tmp_path / "e.csv", episodes[0])).frames == len(episodes[0].times) - 1

@@ -403,8 +403,8 @@ def _read_csv(path: Path, episodes: list[int] | None) -> ArmLog:
         raise
     except (OSError, ValueError, UnicodeDecodeError) as exc:
         raise LogError(f"CSV log {str(path)!r} cannot be read: {exc}") from exc
-    if len(rows) < 2:
-        raise LogError(f"CSV log {str(path)!r} has fewer than two rows")
+    if len(rows) < 3:
+        raise LogError(f"CSV log {str(path)!r} has fewer than three rows")
     a = np.array(rows)
     if not np.isfinite(a).all():
         row = int(np.flatnonzero(~np.isfinite(a).all(axis=1))[0]) + 2
@@ -413,9 +413,13 @@ def _read_csv(path: Path, episodes: list[int] | None) -> ArmLog:
             "infinity); expected times, commands and measurements"
         )
     _choose([0], episodes, str(path))
-    t = a[:, 0] - a[0, 0]
-    cmd = a[:, 1::2][:, : len(JOINT_NAMES)]
-    meas = a[:, 2::2][:, : len(JOINT_NAMES)]
+    # so101sim's --log writes each row's measurement after that row's command has acted (one
+    # physics step later); a recording pairs each command with the state read before it
+    # (LeRobot's order, what the replay assumes): frame k is row k's command with row k-1's
+    # measurement, so the first row gives only the first measured state.
+    t = a[1:, 0] - a[1, 0]
+    cmd = a[1:, 1::2][:, : len(JOINT_NAMES)]
+    meas = a[:-1, 2::2][:, : len(JOINT_NAMES)]
     dt = np.diff(t)
     if (dt <= 0).any():
         raise LogError(f"CSV log {str(path)!r}: times do not increase")
