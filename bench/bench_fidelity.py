@@ -1,7 +1,7 @@
 """How well each actuator model predicts a real STS3215 on the pendulum bench.
 
     PYTHONPATH=src python bench/bench_fidelity.py PATH [--split validation|fit|all]
-        [--bam-m1 FILE] [--arm NAME|FILE ...] [--fit OUT.toml [--iterations N]]
+        [--bam-m1 FILE] [--arm NAME|FILE ...] [--fit OUT.toml [--iterations N] [--spread]]
 
 PATH is the public data set's folder of JSON runs (kscalelabs/sysid at commit 6b78737,
 ``data/feetech/STS_3215_12V_20250317/processed/``) or an ``.npz`` of runs (the project's
@@ -19,6 +19,12 @@ model took on this machine (a ratio, not a figure to quote alone).
 FIT runs in PATH, starting from the shipped ``sts3215``, write the profile to OUT.toml (at 12 V
 as measured, driven at 7.4 V like the shipped one) and score it beside the others: how the
 shipped ``sts3215.toml`` was made (``--iterations 40``, every 4th sample).
+
+``--spread`` (with ``--fit``): also fit each trajectory family of the FIT runs on its own and
+print how far the parameters move between families; the profile's ``[uncertainty]`` table (the
+standard deviations domain randomisation draws from, ``--randomize``) is then, per parameter,
+the whole fit's standard error and the families' standard deviation combined
+(sqrt(se² + sd²)); without ``--spread`` it is the standard error alone.
 """
 
 from __future__ import annotations
@@ -34,8 +40,32 @@ from so101sim.fidelity.benchdata import load_bench_runs, split_runs
 from so101sim.fidelity.benchfit import per_run_errors, simulate_runs, summarize
 
 
-def fit_profile(runs: list, out: Path, iterations: int) -> Path:
-    """Fit the servo on ``runs`` from the shipped sts3215 and write the profile to ``out``."""
+def family_spread(runs: list, iterations: int) -> dict[str, float]:
+    """Fit each trajectory family of ``runs`` on its own; print each fit and return each
+    parameter's standard deviation between the families' fits."""
+    from so101sim.fidelity.benchfit import fit_bench
+
+    families = sorted({r.trajectory for r in runs})
+    fits = {}
+    for fam in families:
+        part = [r for r in runs if r.trajectory == fam]
+        t0 = time.perf_counter()
+        fits[fam] = fit_bench(part, "sts3215", every=4, max_evaluations=iterations)
+        print(f"  {fam:<18}{len(part):>4} runs, error {fits[fam].fit_error:.4f} rad, "
+              f"{time.perf_counter() - t0:.0f} s")  # fmt: skip
+    names = fits[families[0]].names
+    print(f"  {'parameter':<20}" + "".join(f"{f[:12]:>13}" for f in families) + f"{'sd':>13}")
+    sd = {}
+    for k in names:
+        vals = np.array([getattr(fits[f].servo, k) for f in families])
+        sd[k] = float(np.std(vals, ddof=1)) if len(vals) > 1 else 0.0
+        print(f"  {k:<20}" + "".join(f"{v:>13.5g}" for v in vals) + f"{sd[k]:>13.3g}")
+    return sd
+
+
+def fit_profile(runs: list, out: Path, iterations: int, spread: bool = False) -> Path:
+    """Fit the servo on ``runs`` from the shipped sts3215 and write the profile to ``out``
+    (its ``[uncertainty]``: the standard errors, with the families' spread when ``spread``)."""
     from dataclasses import replace
 
     from so101sim.fidelity.benchfit import fit_bench
@@ -46,12 +76,16 @@ def fit_profile(runs: list, out: Path, iterations: int) -> Path:
     t0 = time.perf_counter()
     res = fit_bench(runs, "sts3215", every=4, max_evaluations=iterations)
     start = load_profile("sts3215")
-    prof = replace(start, name="sts3215-refit", servo=replace(res.servo, torque_scale=1.0))
+    sd = family_spread(runs, iterations) if spread else {}
+    sigma = {k: float(np.hypot(res.stderr[k], sd.get(k, 0.0))) for k in res.names}
+    prof = replace(start, name="sts3215-refit", servo=replace(res.servo, torque_scale=1.0),
+                   uncertainty=sigma)  # fmt: skip
     errs = ", ".join(f"{k} ±{v:.2g}" for k, v in res.stderr.items())
+    how = "standard errors and the trajectory families' spread" if spread else "standard errors"
     comment = (
         f"bench/bench_fidelity.py --fit: {len(runs)} FIT runs, {res.evaluations} evaluations, "
         f"{time.perf_counter() - t0:.0f} s\nfit error {res.fit_error:.4f} rad; standard errors: "
-        f"{errs}"
+        f"{errs}\n[uncertainty]: {how}"
     )
     out.write_text(profile_toml(prof, comment=comment), encoding="utf-8")
     print(f"fitted {len(runs)} runs: mean per-run error {res.fit_error:.4f} rad; wrote {out}")
@@ -68,6 +102,7 @@ def main() -> None:
     ap.add_argument("--arm", action="append", default=None, help="profiles (repeatable)")
     ap.add_argument("--fit", type=Path, default=None, help="fit on the FIT runs, write here")
     ap.add_argument("--iterations", type=int, default=40, help="solver evaluations (--fit)")
+    ap.add_argument("--spread", action="store_true", help="also fit each trajectory family")
     args = ap.parse_args()
 
     runs = load_bench_runs(args.path)
@@ -80,7 +115,7 @@ def main() -> None:
 
     arms: list = list(args.arm or ["official", "sts3215"])
     if args.fit is not None:
-        arms.append(fit_profile(fit, args.fit, args.iterations))
+        arms.append(fit_profile(fit, args.fit, args.iterations, args.spread))
     columns: dict[str, dict[str, float]] = {}
     times: dict[str, float] = {}
     for arm in arms:

@@ -44,6 +44,10 @@ def test_fit_recovers_the_hidden_arm_and_predicts_held_out_motion(episodes):
     assert res.heldout_error is not None and res.start_heldout_error is not None
     for name in JOINT_NAMES:
         assert res.heldout_error[name] < 0.5  # degrees (gripper units)
+    # the profile's [uncertainty] is the largest standard error of each fitted parameter
+    for name in ("kp_per_p", "damping", "delay_s"):
+        worst = max(se[name] for se in res.stderr.values() if name in se)
+        assert res.profile.uncertainty[name] == pytest.approx(worst)
     # the start (sts3215, 32 ms) was worse on the body joints that changed
     assert res.start_heldout_error["shoulder_lift"] > 3 * res.heldout_error["shoulder_lift"]
 
@@ -58,6 +62,7 @@ def test_cli_fit_writes_a_profile_compare_accepts(tmp_path, episodes, capsys):
     assert "held-out episodes 2" in text and "±" in text and "delay_s" in text
     prof = load_profile(out)
     assert prof.joint("shoulder_lift").kp > 0
+    assert "[uncertainty]" in out.read_text() and prof.uncertainty["delay_s"] > 0
     res = compare(write_csv(tmp_path / "e2.csv", episodes[2]), arm=out)
     assert res.frames == len(episodes[2].times) - 1  # a CSV log: its first row starts it
     # nothing half-done: an existing output is refused before any work

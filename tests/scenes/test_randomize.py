@@ -9,7 +9,8 @@ import mujoco
 import numpy as np
 import pytest
 
-import so101sim.envs  # noqa: F401  (registers the environments)
+import so101sim.envs
+import so101sim.units
 from so101sim.errors import SettingError
 from so101sim.scenes import RANDOMIZE_PRESETS, Randomization, randomization
 
@@ -141,3 +142,97 @@ def test_the_follower_draws_the_same_scene_as_the_environment_for_a_seed():
         robot.disconnect()
     with pytest.raises(SettingError, match="needs a scene"):
         SO101SimFollowerConfig(randomize="light")
+
+
+def test_actuator_sigmas_draw_each_servo_from_the_profiles_uncertainty(tmp_path):
+    """The ``actuator_sigmas`` family writes the arm profile's uncertainty draws (recorded per
+    joint under ``servos``) into the gain, delay and friction it names, and nothing else."""
+    path = tmp_path / "wide.toml"
+    path.write_text(
+        'name = "wide"\nextends = "sts3215"\n\n[uncertainty]\n'
+        "kp_per_p = 0.1\ndelay_s = 0.004\nfrictionloss = 0.02\n"
+        f"{NOT_DRAWN}"
+    )
+    base = gym.make(ID, arm=str(path))
+    base.reset(seed=3)
+    m0 = base.unwrapped.model
+    names = ("actuator_biasprm", "actuator_delay", "dof_frictionloss", "dof_damping",
+             "dof_armature", "actuator_forcerange", "geom_rgba", "body_mass",
+             "jnt_range")  # fmt: skip
+    ref = {n: getattr(m0, n).copy() for n in names}
+    env = gym.make(ID, arm=str(path), randomize={"actuator_sigmas": 2.0})
+    env.reset(seed=3)
+    inner = env.unwrapped
+    drawn = inner.randomization["servos"]
+    assert list(drawn) == list(so101sim.units.JOINT_NAMES)
+    touched = {"actuator_biasprm", "actuator_delay", "dof_frictionloss"}
+    for n in names:
+        assert np.array_equal(ref[n], getattr(inner.model, n)) != (n in touched), n
+    prof = inner.arm
+    for j, (act, dof) in enumerate(zip(*_arm(inner.model), strict=True)):
+        name = so101sim.units.JOINT_NAMES[j]
+        nominal = prof.joint(name)
+        kp = -inner.model.actuator_biasprm[act, 1]
+        want = nominal.kp + drawn[name]["kp_per_p"] * nominal.firmware_p
+        assert kp == pytest.approx(want)
+        delay = inner.model.actuator_delay[act]  # what was applied is recorded
+        assert delay == pytest.approx(nominal.delay_s + drawn[name]["delay_s"], abs=1e-12)
+        reach = (inner.model.actuator_history[act, 0] - 2) * inner.model.opt.timestep
+        assert 0 <= delay <= reach + 1e-12
+        assert inner.model.dof_frictionloss[dof] == pytest.approx(
+            max(0.0, ref["dof_frictionloss"][dof] + drawn[name]["frictionloss"])
+        )
+    again = gym.make(ID, arm=str(path), randomize={"actuator_sigmas": 2.0})
+    again.reset(seed=3)
+    assert again.unwrapped.randomization["servos"] == drawn
+    # a profile without an uncertainty table draws nothing from this family
+    plain = gym.make(ID, arm="official", randomize={"actuator_sigmas": 2.0})
+    plain.reset(seed=3)
+    assert plain.unwrapped.randomization["servos"] == {j: {} for j in so101sim.units.JOINT_NAMES}
+
+
+_ZEROED = ("torque_limit", "damping", "viscous", "drive_frictionloss", "armature", "max_velocity")
+NOT_DRAWN = "".join(f"{k} = 0.0\n" for k in _ZEROED)
+"""The shipped sts3215's other standard deviations set to 0: those fields are not drawn."""
+
+
+def _arm(model):
+    from so101sim.model import arm_index
+
+    idx = arm_index(model)
+    return idx.actuator, idx.dof
+
+
+def test_textures_are_built_in_and_change_only_the_images():
+    """The ``textures`` family puts the table and the objects in one of the built-in textures
+    (with the chance it gives), recorded per surface; the physics stays bit for bit."""
+    env = gym.make(ID, randomize={"textures": 1.0}, cameras=["front"], image_size=(48, 64))
+    plain = gym.make(ID, cameras=["front"], image_size=(48, 64))
+    m = env.unwrapped.model
+    mats = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_MATERIAL, f"so101sim_texture_{k}")
+            for k in ("checker", "gradient", "speckle")]  # fmt: skip
+    assert min(mats) >= 0
+    seen = set()
+    for seed in range(4):
+        obs, _ = env.reset(seed=seed)
+        ref, _ = plain.reset(seed=seed)
+        chosen = env.unwrapped.randomization["textures"]
+        assert set(chosen) == {"table", "cube"}  # chance 1: every surface
+        seen |= set(chosen.values())
+        table = np.flatnonzero(m.geom_bodyid == m.body("table").id)
+        assert set(m.geom_matid[table]) == {
+            mats[("checker", "gradient", "speckle").index(chosen["table"])]
+        }
+        assert not np.array_equal(obs["pixels"]["front"], ref["pixels"]["front"])
+        np.testing.assert_array_equal(obs["agent_pos"], ref["agent_pos"])
+        np.testing.assert_array_equal(obs["environment_state"], ref["environment_state"])
+    assert len(seen) > 1
+    a = rollout(env, 2)
+    b = rollout(plain, 2)
+    for x, y in zip(a, b, strict=True):
+        np.testing.assert_array_equal(x["agent_pos"], y["agent_pos"])
+    none = gym.make(ID, randomize={"textures": 0.0})
+    assert mujoco.mj_name2id(none.unwrapped.model, mujoco.mjtObj.mjOBJ_MATERIAL,
+                             "so101sim_texture_checker") < 0  # fmt: skip
+    with pytest.raises(SettingError, match="textures"):
+        randomization({"textures": 1.5})

@@ -44,13 +44,13 @@ from ..scenes import (
     SceneRandomizer,
     VisualJitter,
     VisualRandomizer,
-    add_distractors,
     build_scene,
     camera,
     place_objects,
     preset_scene,
     randomization,
     sample_placements,
+    scene_additions,
 )
 from ..sim.simulation import Simulation
 from ..sim.stepping import advance_unobserved
@@ -143,12 +143,7 @@ class So101TaskEnv(SceneState, gym.Env):
         self.arm = load_profile(arm)  # the servos' model: name, TOML file or None (default)
         self.scene = preset_scene(self.scene_name, cameras=self._camera_specs())
         self.randomize = randomization(randomize)
-        n = self.randomize.distractors
-        self.model = build_scene(
-            self.scene,
-            arm=self.arm,
-            extra=(lambda spec: add_distractors(spec, n)) if n else None,
-        )
+        self.model = build_scene(self.scene, arm=self.arm, extra=scene_additions(self.randomize))
         limit_gripper(self.model, fraction, self.arm)
         self.sim = Simulation(self.model, initial_pose=initial_pose or STARTING_POSE)
         self._period_steps = 1.0 / (hz * self.sim.timestep)  # physics steps per env step
@@ -238,7 +233,9 @@ class So101TaskEnv(SceneState, gym.Env):
         renders = [r.render_model for r in self._renderers.values()]
         if self._scene_randomizer is None:
             objects = [o.name for o in self.scene.objects]
-            self._scene_randomizer = SceneRandomizer(self.model, objects, self.randomize, renders)
+            self._scene_randomizer = SceneRandomizer(
+                self.model, objects, self.randomize, renders, profile=self.arm
+            )
         for m in renders:
             self._scene_randomizer.add_render_model(m)
         self.randomization = self._scene_randomizer.apply(self.np_random, self.sim.data)

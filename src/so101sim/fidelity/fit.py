@@ -17,6 +17,7 @@ when there are two or more) measure how well the fitted profile predicts motion 
 from __future__ import annotations
 
 import logging
+import math
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
@@ -26,7 +27,15 @@ import mujoco
 import numpy as np
 
 from ..errors import SettingError
-from ..model.arm import ArmProfile, ServoParams, apply_profile, load_profile, write_servo
+from ..model.arm import (
+    UNCERTAIN_FIELDS,
+    UNCERTAIN_LIMIT,
+    ArmProfile,
+    ServoParams,
+    apply_profile,
+    load_profile,
+    write_servo,
+)
 from ..model.load import arm_index, arm_units, scene_path
 from ..units import JOINT_NAMES, ArmUnits
 from ..validation import check_count
@@ -331,7 +340,7 @@ def fit(
         hp = hold.replay([servos_of(sol.x), servos_of(z_start)])
         held_err, start_held = _mae(hp[0], hreal), _mae(hp[1], hreal)
     return FitResult(
-        profile=replace(best, name=f"{start.name}-fit", source=""),
+        profile=replace(best, name=f"{start.name}-fit", source="", uncertainty=_spread(stderr)),
         values=values,
         stderr=stderr,
         fit_episodes=[e.index for e in fit_eps],
@@ -342,6 +351,17 @@ def fit(
         start_heldout_error=start_held,
         evaluations=calls[0],
     )
+
+
+def _spread(stderr: dict[str, dict[str, float]]) -> dict[str, float]:
+    """The fitted profile's ``[uncertainty]``: per parameter, the largest of the joints'
+    standard errors (finite ones, within the table's bounds)."""
+    out: dict[str, float] = {}
+    for values in stderr.values():
+        for name, se in values.items():
+            if name in UNCERTAIN_FIELDS and math.isfinite(se):
+                out[name] = max(out.get(name, 0.0), float(se))
+    return {k: min(v, UNCERTAIN_LIMIT[k]) for k, v in out.items()}
 
 
 def _plain_model(path: str | Path | None) -> mujoco.MjModel:

@@ -24,6 +24,11 @@ a goal position written every control tick), in MuJoCo's own terms:
 * ``offset``: a calibration offset (rad) per joint: the servo holds ``goal - offset``;
 * ``kv``: an actuator velocity gain (only the vendored model uses one).
 
+A profile may carry an ``[uncertainty]`` table: a standard deviation (at ``measured_at_v``,
+in the field's own unit) for some of :data:`UNCERTAIN_FIELDS`, e.g. a fit's standard errors.
+Domain randomisation (``scenes.randomize``, family ``actuator_sigmas``) draws each joint's
+servo from it (:func:`draw_servo_deltas`); it does not change the model the profile loads.
+
 Values are given at ``measured_at_v`` volts; the profile's ``supply_v`` (7.4 V for the
 standard SO-101, 12 V for the "pro" kit) scales the torque-related ones (``kp_per_p``,
 ``torque_limit``, ``damping``) by the ratio of the two servo versions' rated stall torques
@@ -59,11 +64,14 @@ from ..validation import check_range
 
 __all__ = [
     "STALL_TORQUE_NM",
+    "UNCERTAIN_FIELDS",
+    "UNCERTAIN_LIMIT",
     "ArmProfile",
     "ProfileError",
     "ServoParams",
     "apply_profile",
     "default_profile",
+    "draw_servo_deltas",
     "fill_delay_history",
     "gripper_full_range",
     "load_profile",
@@ -112,6 +120,25 @@ _BOUNDS: dict[str, tuple[float, float, str]] = {
     "torque_scale": (0.0, 1.0, ""),
 }
 _OPEN_LOW = {"torque_limit", "torque_scale"}
+
+UNCERTAIN_FIELDS: tuple[str, ...] = (
+    "kp_per_p",
+    "torque_limit",
+    "damping",
+    "viscous",
+    "frictionloss",
+    "drive_frictionloss",
+    "armature",
+    "delay_s",
+    "max_velocity",
+    "offset",
+)
+"""The servo fields an ``[uncertainty]`` table may give a standard deviation for (those a drawn
+servo changes in a compiled model)."""
+UNCERTAIN_LIMIT: dict[str, float] = {}
+"""The largest standard deviation a table may give each field (its range's width)."""
+MAX_SIGMAS = 3.0
+"""Draws from a profile's uncertainty are cut at this many standard deviations."""
 
 
 @dataclass(frozen=True)
@@ -188,6 +215,7 @@ class ArmProfile:
     servo: ServoParams = field(default_factory=ServoParams)
     joints: dict[str, dict[str, float]] = field(default_factory=dict)
     source: str = ""
+    uncertainty: dict[str, float] = field(default_factory=dict)
 
     @property
     def supply_scale(self) -> float:
@@ -305,11 +333,11 @@ def _from_file(path: Path, seen: set[str]) -> ArmProfile:
 
 def _from_dict(raw: dict[str, Any], where: str, seen: set[str]) -> ArmProfile:
     top = {"name", "description", "extends", "supply_v", "measured_at_v", "scale_with_supply"}
-    unknown = set(raw) - top - {"servo", "joints"}
+    unknown = set(raw) - top - {"servo", "joints", "uncertainty"}
     if unknown:
         raise ProfileError(
             f"{where}: unknown field {sorted(unknown)[0]!r}; expected {', '.join(sorted(top))}, "
-            "[servo] and [joints.<joint>]"
+            "[servo], [joints.<joint>] and [uncertainty]"
         )
     base: ArmProfile | None = None
     if "extends" in raw:
@@ -348,10 +376,34 @@ def _from_dict(raw: dict[str, Any], where: str, seen: set[str]) -> ArmProfile:
     measured = _check_supply(
         raw.get("measured_at_v", base.measured_at_v if base else supply), "measured_at_v"
     )
+    uncertainty = dict(base.uncertainty) if base else {}
+    uncertainty.update(_check_uncertainty(raw.get("uncertainty", {}), where))
     return ArmProfile(
         name=name, description=desc, supply_v=supply, measured_at_v=measured,
         scale_with_supply=scale, servo=servo, joints=joints, source=where,
+        uncertainty=uncertainty,
     )  # fmt: skip
+
+
+UNCERTAIN_LIMIT.update({k: _BOUNDS[k][1] - _BOUNDS[k][0] for k in UNCERTAIN_FIELDS})
+
+
+def _check_uncertainty(table: object, where: str) -> dict[str, float]:
+    if not isinstance(table, dict):
+        raise ProfileError(f"{where}: [uncertainty] must be a table of standard deviations")
+    out: dict[str, float] = {}
+    for key, value in table.items():
+        if key not in UNCERTAIN_FIELDS:
+            raise ProfileError(
+                f"{where}: [uncertainty] has {key!r}; expected some of "
+                f"{', '.join(UNCERTAIN_FIELDS)}"
+            )
+        out[key] = check_range(
+            value, f"{where}: uncertainty.{key}", low=0.0, high=UNCERTAIN_LIMIT[key],
+            unit=_BOUNDS[key][2],
+            error=ProfileError,
+        )  # fmt: skip
+    return out
 
 
 def profile_toml(profile: ArmProfile, *, comment: str = "") -> str:
@@ -372,6 +424,9 @@ def profile_toml(profile: ArmProfile, *, comment: str = "") -> str:
         if values:
             lines += ["", f"[joints.{joint}]"]
             lines += [f"{k} = {float(v)!r}" for k, v in values.items()]
+    if profile.uncertainty:
+        lines += ["", "[uncertainty]"]
+        lines += [f"{k} = {float(v)!r}" for k, v in profile.uncertainty.items()]
     return "\n".join(lines) + "\n"
 
 
@@ -388,7 +443,7 @@ def profile_key(profile: str | Path | ArmProfile | None) -> str:
 
 def _values_toml(profile: ArmProfile) -> str:
     """The profile's values as the model gets them (name, description and source aside)."""
-    return profile_toml(replace(profile, name="", description="", source=""))
+    return profile_toml(replace(profile, name="", description="", source="", uncertainty={}))
 
 
 @lru_cache(maxsize=1)
@@ -533,3 +588,40 @@ def write_servo(model: mujoco.MjModel, actuator: int, dof: int, params: ServoPar
     model.dof_damping[dof] = params.joint_damping
     model.dof_frictionloss[dof] = params.joint_frictionloss
     model.dof_armature[dof] = params.armature
+
+
+def draw_servo_deltas(
+    profile: str | Path | ArmProfile | None,
+    rng: np.random.Generator,
+    sigmas: float = 1.0,
+    joints: tuple[str, ...] = JOINT_NAMES,
+) -> dict[str, dict[str, float]]:
+    """One draw of each joint's servo from ``profile``'s ``[uncertainty]``: for each joint
+    (in ``joints``' order) and each field of the table (in :data:`UNCERTAIN_FIELDS`' order), the
+    drawn value minus the profile's own, at the profile's supply (``ArmProfile.joint``). Each
+    field is drawn independently per joint as the value plus ``sigmas`` × its standard deviation
+    × a standard normal number cut at ±:data:`MAX_SIGMAS`, kept inside the field's bounds. No
+    table, or ``sigmas`` = 0: an empty dict per joint, and nothing drawn from ``rng``.
+
+    Raises:
+        ProfileError: ``sigmas`` outside 0 to :data:`MAX_SIGMAS`.
+    """
+    prof = load_profile(profile)
+    k = check_range(sigmas, "actuator sigmas", low=0.0, high=MAX_SIGMAS, error=ProfileError)
+    names = [n for n in UNCERTAIN_FIELDS if prof.uncertainty.get(n, 0.0) > 0]
+    if not names or k == 0:
+        return {j: {} for j in joints}
+    z = np.clip(rng.standard_normal((len(joints), len(names))), -MAX_SIGMAS, MAX_SIGMAS)
+    out: dict[str, dict[str, float]] = {}
+    for i, joint in enumerate(joints):
+        raw = prof.joint(joint, scaled=False)
+        values = {}
+        for f, name in enumerate(names):
+            low, high, _ = _BOUNDS[name]
+            v = getattr(raw, name) + k * prof.uncertainty[name] * z[i, f]
+            floor = low + 1e-9 if name in _OPEN_LOW else low
+            values[name] = float(np.clip(v, floor, high))
+        drawn = replace(prof, joints={joint: {**prof.joints.get(joint, {}), **values}})
+        new, old = drawn.joint(joint), prof.joint(joint)
+        out[joint] = {n: getattr(new, n) - getattr(old, n) for n in names}
+    return out

@@ -41,10 +41,11 @@ from ..recording.settings import QUALITY_CHOICES, VideoSettings
 from ..scenes import (
     PRESET_CAMERAS,
     CameraSpec,
-    add_distractors,
     build_model,
     camera,
     preset_scene,
+    randomization,
+    scene_additions,
 )
 from ..sim.simulation import Simulation
 
@@ -146,7 +147,7 @@ def scene_model(
     cameras: Mapping[str, Any] | None,
     model: str | Path | None,
     scene: str | None = None,
-    distractors: int = 0,
+    randomize: object = None,
     *,
     arm: object = None,
 ) -> mujoco.MjModel:
@@ -154,11 +155,11 @@ def scene_model(
     profile ``arm`` (None: the default), its cameras and the table and objects of the
     ``scene`` preset (see :data:`so101sim.scenes.SCENE_PRESETS`) added, compiled anew;
     without cameras or a scene, a private copy of the loaded model (the follower changes the
-    gripper's force range on it). ``distractors``: that many distractor boxes for the domain
-    randomisation."""
+    gripper's force range on it). ``randomize``: the domain randomisation (a preset's name, a
+    dict or a ``Randomization``) whose distractor boxes and textures are built in."""
     cams = parse_cameras(cameras)
     if scene is not None:
-        extra = (lambda spec: add_distractors(spec, distractors)) if distractors else None
+        extra = scene_additions(randomization(randomize))
         specs = [c.spec for c in cams.values()]
         return build_model(specs, model, scene=preset_scene(scene), extra=extra, arm=arm)
     if cams:

@@ -130,13 +130,11 @@ class SO101SimFollower:
         pose.update(parse_pose(self.config.initial_pose, partial=True))
         # A private model (configure() changes the gripper's force range on it), with the
         # config's cameras and scene preset added; the rig renders them (robot.cameras).
-        from ..scenes import randomization  # the preset's distractors are built in
-
-        n = randomization(self.config.randomize).distractors
-        profile = load_profile(self.config.arm)
+        profile = load_profile(self.config.arm)  # the preset's distractors, textures built in
         model = scene_model(
-            self.config.cameras, self.config.model, self.config.scene, n, arm=profile
-        )
+            self.config.cameras, self.config.model, self.config.scene, self.config.randomize,
+            arm=profile,
+        )  # fmt: skip
         self._sim = Simulation(model, initial_pose=pose)
         self._limits = tuple(a.tolist() for a in self._sim.units.limits)  # floats, per action
         self._rig = CameraRig(self._sim, self.config.cameras)

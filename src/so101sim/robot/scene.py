@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DeviceNotConnectedError, RobotConfigError
+from ..model.arm import load_profile
 from ..scenes import (
     SCENE_PRESETS,
     Placement,
@@ -240,7 +241,10 @@ class RobotScene:
                 renders = rig.render_models if rig is not None else []
                 if self._randomizer is None:
                     objects = [o.name for o in self.scene.objects]
-                    self._randomizer = SceneRandomizer(sim.model, objects, options, renders)
+                    profile = load_profile(getattr(follower.config, "arm", None))
+                    self._randomizer = SceneRandomizer(
+                        sim.model, objects, options, renders, profile=profile
+                    )
                 for m in renders:
                     self._randomizer.add_render_model(m)
                 self.randomization = self._randomizer.apply(rng, sim.data)

@@ -56,7 +56,9 @@ from .randomize import (
     Randomization,
     SceneRandomizer,
     add_distractors,
+    add_textures,
     randomization,
+    scene_additions,
 )
 
 __all__ = [
@@ -83,6 +85,7 @@ __all__ = [
     "VisualJitter",
     "VisualRandomizer",
     "add_distractors",
+    "add_textures",
     "build_model",
     "build_scene",
     "camera",
@@ -97,6 +100,7 @@ __all__ = [
     "preset_scene",
     "randomization",
     "sample_placements",
+    "scene_additions",
     "scene_builder",
     "scene_from_dict",
     "scene_of",

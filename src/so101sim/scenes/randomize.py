@@ -16,8 +16,19 @@ families:
 - ``distractors``: up to this many small boxes (:data:`DISTRACTOR_PREFIX` ``0``, ``1``, …,
   added with ``MjSpec`` when the scene is built: :func:`add_distractors`) put on the table at
   random, clear of the task's objects; the ones not used wait off the table;
+- ``textures``: the chance (0 to 1) that the table and each object are drawn with one of
+  :data:`TEXTURES` (checker, gradient, speckle: built into the scene with ``MjSpec`` by
+  :func:`add_textures`, tinted by the surface's own colour, the ``colors`` family on top)
+  instead of their plain colour; only the images change;
 - ``actuators``: each arm joint's position gain (kp), damping, friction loss and armature
-  scaled by up to ±this share, around the model's values.
+  scaled by up to ±this share, around the model's values;
+- ``actuator_sigmas``: each arm joint's servo drawn from the arm profile's ``[uncertainty]``
+  (:func:`so101sim.model.arm.draw_servo_deltas`: normal draws of this many standard
+  deviations, cut at 3): gain, torque limit, back-EMF and viscous damping, both frictions,
+  armature, command delay, the firmware's goal speed and calibration offset, those the
+  profile gives a standard deviation for (the shipped ``sts3215``: its fit's standard errors
+  and the spread between fits on each trajectory family of the servo bench). A profile with no
+  table (``official``) draws nothing here.
 
 :class:`SceneRandomizer` applies one draw to a compiled scene (its physics model and the render
 models its images are drawn with), always from the models' original values, so draws never
@@ -29,7 +40,7 @@ joints, their order and units, the timestep and the control rate stay.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
@@ -38,6 +49,7 @@ import numpy as np
 
 from ..errors import SettingError
 from ..model import arm_index
+from ..model.arm import MAX_SIGMAS, ArmProfile, draw_servo_deltas
 from ..validation import check_count, check_range
 from .cameras import PRESET_CAMERAS
 
@@ -73,8 +85,16 @@ SNAPSHOT = (
     "dof_damping",
     "dof_frictionloss",
     "dof_armature",
+    "actuator_forcerange",
+    "actuator_dynprm",
+    "actuator_delay",
 )
 """The model arrays a draw may change (restored before each draw)."""
+SNAPSHOT = (*SNAPSHOT, "geom_matid")
+
+TEXTURES = ("checker", "gradient", "speckle")
+"""The textures the ``textures`` family draws from (materials named ``TEXTURE_PREFIX + kind``)."""
+TEXTURE_PREFIX = "so101sim_texture_"
 
 
 @dataclass(frozen=True)
@@ -89,7 +109,9 @@ class Randomization:
     object_mass: float = 0.0
     friction: float = 0.0
     distractors: int = 0
+    textures: float = 0.0
     actuators: float = 0.0
+    actuator_sigmas: float = 0.0
 
     def validated(self) -> Randomization:
         """A checked copy, or a SettingError naming the family and its bounds."""
@@ -107,7 +129,11 @@ class Randomization:
             distractors=int(
                 check_count(self.distractors, "randomize distractors", maximum=MAX_DISTRACTORS)
             ),
+            textures=check_range(self.textures, "randomize textures", low=0.0, high=1.0),
             actuators=check_range(self.actuators, "randomize actuators", **share),
+            actuator_sigmas=check_range(
+                self.actuator_sigmas, "randomize actuator_sigmas", low=0.0, high=MAX_SIGMAS
+            ),
         )
 
     @property
@@ -127,6 +153,7 @@ PRESETS: dict[str, Randomization] = {
         friction=0.1,
         distractors=0,
         actuators=0.05,
+        actuator_sigmas=0.5,
     ),
     "full": Randomization(
         lighting=0.5,
@@ -137,7 +164,9 @@ PRESETS: dict[str, Randomization] = {
         object_mass=0.5,
         friction=0.3,
         distractors=3,
+        textures=0.5,
         actuators=0.15,
+        actuator_sigmas=1.0,
     ),
 }
 """The named presets (``--randomize none|light|full``)."""
@@ -194,6 +223,44 @@ def add_distractors(spec: mujoco.MjSpec, count: int) -> None:
         )
 
 
+def add_textures(spec: mujoco.MjSpec) -> None:
+    """Add the :data:`TEXTURES` (64×64 white and grey 2-D textures, twice across each face) and a
+    material of each to ``spec``, for the ``textures`` family; no geom uses them until a draw."""
+    builtin = {
+        "checker": mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
+        "gradient": mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
+        "speckle": mujoco.mjtBuiltin.mjBUILTIN_FLAT,
+    }
+    for kind in TEXTURES:
+        name = f"{TEXTURE_PREFIX}{kind}"
+        tex = spec.add_texture(name=name, type=mujoco.mjtTexture.mjTEXTURE_2D, width=64, height=64)
+        tex.builtin = builtin[kind]
+        tex.rgb1 = [1.0, 1.0, 1.0]
+        tex.rgb2 = [0.55, 0.55, 0.55]
+        if kind == "speckle":
+            tex.mark = mujoco.mjtMark.mjMARK_RANDOM
+            tex.random = 0.25
+            tex.markrgb = [0.5, 0.5, 0.5]
+        mat = spec.add_material(name=name, texrepeat=[2.0, 2.0])
+        mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = name
+
+
+def scene_additions(options: Randomization) -> Callable[[mujoco.MjSpec], None] | None:
+    """What a scene must be built with for ``options`` (the distractor boxes, the textures), as
+    ``build_model``'s ``extra``; None when nothing."""
+    o = options.validated()
+    if not o.distractors and not o.textures:
+        return None
+
+    def extra(spec: mujoco.MjSpec) -> None:
+        if o.distractors:
+            add_distractors(spec, o.distractors)
+        if o.textures:
+            add_textures(spec)
+
+    return extra
+
+
 def _ids(model: mujoco.MjModel, kind: mujoco.mjtObj, names: list[str]) -> list[int]:
     return [i for i in (mujoco.mj_name2id(model, kind, n) for n in names) if i >= 0]
 
@@ -207,8 +274,10 @@ class SceneRandomizer:
         objects: list[str],
         options: Randomization,
         render_models: list[mujoco.MjModel] | None = None,
+        profile: ArmProfile | None = None,
     ) -> None:
         self.options = options.validated()
+        self.profile = profile
         self.model = model
         self.render_models = list(render_models or [])
         self.objects = list(objects)
@@ -223,7 +292,18 @@ class SceneRandomizer:
                 f"with {len(self._distractors)}; expected the scene built with "
                 f"add_distractors(spec, {self.options.distractors})"
             )
+        if self.options.textures and self._materials(model) is None:
+            raise SettingError(
+                f"randomize textures = {self.options.textures} but the scene was built without "
+                "them; expected the scene built with add_textures(spec) (scene_additions)"
+            )
         self._base = {m: self._snapshot(m) for m in [model, *self.render_models]}
+
+    @staticmethod
+    def _materials(m: mujoco.MjModel) -> list[int] | None:
+        ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_MATERIAL, f"{TEXTURE_PREFIX}{k}")
+               for k in TEXTURES]  # fmt: skip
+        return ids if min(ids) >= 0 else None
 
     def add_render_model(self, model: mujoco.MjModel) -> None:
         """Also give the visual families' draws to ``model`` (a render model of the scene)."""
@@ -322,8 +402,67 @@ class SceneRandomizer:
                               "frictionloss": k_act[:, 2].tolist(),
                               "armature": k_act[:, 3].tolist()}  # fmt: skip
         drawn["distractors"] = self._place_distractors(rng, data)
+        drawn["servos"] = self._draw_servos(rng)
+        drawn["textures"] = self._draw_textures(rng)
         mujoco.mj_forward(m, data)
         return drawn
+
+    def _draw_textures(self, rng: np.random.Generator) -> dict[str, str]:
+        """The ``textures`` family: which surfaces wear which texture (every model that was
+        built with them; a render model without them keeps plain colours)."""
+        if not self.options.textures:
+            return {}
+        chosen: dict[str, str] = {}
+        for name in ["table", *self.objects]:
+            hit = float(rng.uniform()) < self.options.textures
+            kind = TEXTURES[int(rng.integers(len(TEXTURES)))]
+            if hit:
+                chosen[name] = kind
+        for mm in self._base:
+            mats = self._materials(mm)
+            if mats is None:
+                continue
+            for name, kind in chosen.items():
+                mm.geom_matid[self._object_geoms(mm, name)] = mats[TEXTURES.index(kind)]
+        return chosen
+
+    def _draw_servos(self, rng: np.random.Generator) -> dict[str, dict[str, float]]:
+        """The ``actuator_sigmas`` family: each joint's servo drawn from the profile's
+        uncertainty, written over the values the share family left (changes, not values, so the
+        gripper's torque fraction and the share's draw stay). The delay stays within the
+        history the model was built with (up to the next whole timestep above the profile's
+        delay): what is recorded is what was applied."""
+        if self.profile is None or not self.options.actuator_sigmas:
+            return {}
+        m = self.model
+        idx = arm_index(m)
+        deltas = draw_servo_deltas(self.profile, rng, self.options.actuator_sigmas)
+        for (joint, d), act, dof in zip(deltas.items(), idx.actuator, idx.dof, strict=True):
+            kp = -float(m.actuator_biasprm[act, 1])
+            nominal = self.profile.joint(joint)
+            if "kp_per_p" in d and nominal.kp > 0 and kp > 0:
+                ratio = 1.0 + d["kp_per_p"] * nominal.firmware_p / nominal.kp
+                m.actuator_biasprm[act, :2] *= ratio
+                m.actuator_gainprm[act, 0] *= ratio
+                kp *= ratio
+            if "torque_limit" in d and nominal.torque_limit > 0:
+                m.actuator_forcerange[act] *= 1.0 + d["torque_limit"] / nominal.torque_limit
+            m.dof_damping[dof] = max(0.0, m.dof_damping[dof] + d.get("damping", 0.0)
+                                     + d.get("viscous", 0.0))  # fmt: skip
+            m.dof_frictionloss[dof] = max(0.0, m.dof_frictionloss[dof] + d.get("frictionloss", 0.0)
+                                          + d.get("drive_frictionloss", 0.0))  # fmt: skip
+            m.dof_armature[dof] = max(0.0, m.dof_armature[dof] + d.get("armature", 0.0))
+            if "delay_s" in d:
+                reach = max(int(m.actuator_history[act, 0]) - 2, 0) * m.opt.timestep
+                before = float(m.actuator_delay[act])
+                m.actuator_delay[act] = float(np.clip(before + d["delay_s"], 0.0, reach))
+                d["delay_s"] = float(m.actuator_delay[act]) - before  # what the history allows
+            slewing = int(m.actuator_dyntype[act]) == int(mujoco.mjtDyn.mjDYN_PID)
+            if "max_velocity" in d and slewing:
+                m.actuator_dynprm[act, 1] = max(1e-6, m.actuator_dynprm[act, 1] + d["max_velocity"])
+            if "offset" in d:
+                m.actuator_biasprm[act, 0] -= kp * d["offset"]
+        return deltas
 
     def _place_distractors(self, rng: np.random.Generator, data: mujoco.MjData) -> list[Any]:
         m = self.model
@@ -383,9 +522,12 @@ __all__ = [
     "DISTRACTOR_PREFIX",
     "MAX_DISTRACTORS",
     "PRESETS",
+    "TEXTURES",
     "Randomization",
     "SceneRandomizer",
     "add_distractors",
+    "add_textures",
     "describe",
     "randomization",
+    "scene_additions",
 ]
