@@ -52,6 +52,11 @@ class SettingError(So101SimError, ValueError):
     """
 
 
+class ProfileError(SettingError):
+    """An arm profile that cannot be found, read or used: an unknown name, a missing file,
+    invalid TOML, an unknown field or a value out of its bounds."""
+
+
 class DurationError(SettingError):
     """A duration is not a finite number of seconds greater than zero (and at most a day)."""
 

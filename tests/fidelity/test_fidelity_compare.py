@@ -45,7 +45,7 @@ def test_a_dataset_is_read_in_both_layouts(tmp_path, episodes, version):
         np.testing.assert_allclose(got.times, want.times, atol=1e-6)
     only = read_log(root, default_units(), episodes=[1], units="degrees")
     assert [e.index for e in only.episodes] == [1]
-    with pytest.raises(LogError, match="has no episode 7; it has 0-1"):
+    with pytest.raises(LogError, match="has no episode 7; expected one of its episodes 0-1"):
         read_log(root, default_units(), episodes=[7], units="degrees")
     with pytest.raises(LogError, match="units = 'kelvin' is invalid"):
         read_log(root, default_units(), units="kelvin")

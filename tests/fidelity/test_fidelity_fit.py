@@ -63,6 +63,7 @@ def test_cli_fit_writes_a_profile_compare_accepts(tmp_path, episodes, capsys):
     prof = load_profile(out)
     assert prof.joint("shoulder_lift").kp > 0
     assert "[uncertainty]" in out.read_text() and prof.uncertainty["delay_s"] > 0
+    assert "so101sim fit" in prof.description and "bench" not in prof.description
     res = compare(write_csv(tmp_path / "e2.csv", episodes[2]), arm=out)
     assert res.frames == len(episodes[2].times) - 1  # a CSV log: its first row starts it
     # nothing half-done: an existing output is refused before any work

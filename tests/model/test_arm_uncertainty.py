@@ -96,3 +96,9 @@ def test_no_table_or_no_sigmas_draws_nothing(tmp_path):
     assert rng.bit_generator.state == before
     with pytest.raises(ProfileError, match="actuator sigmas"):
         draw_servo_deltas(wide(tmp_path), rng, sigmas=10.0)
+
+
+def test_profile_error_is_one_of_the_package_errors():
+    from so101sim import errors
+
+    assert ProfileError is errors.ProfileError and issubclass(ProfileError, errors.SettingError)

@@ -185,7 +185,9 @@ def _setup(settings: EvalSettings) -> dict[str, Any]:
 
 def run_episode(settings: EvalSettings, index: int) -> EpisodeOutcome:
     """Episode ``index`` (seed ``settings.seed + index``), in this process."""
-    from lerobot.scripts.lerobot_eval import rollout
+    from unittest import mock
+
+    from lerobot.scripts import lerobot_eval
 
     s = _setup(settings)
     seed = settings.seed + index
@@ -194,8 +196,11 @@ def run_episode(settings: EvalSettings, index: int) -> EpisodeOutcome:
     def render(env: Any) -> None:
         frames.append(env.envs[0].render())
 
-    out = rollout(s["vec"], s["policy"], s["env_pre"], s["env_post"], s["pre"], s["post"],
-                  seeds=[seed], render_callback=render)  # fmt: skip
+    # one bar for the whole evaluation (ours): rollout()'s per-step bar is off, as LeRobot
+    # turns it off under Slurm
+    with mock.patch.object(lerobot_eval, "inside_slurm", lambda: True):
+        out = lerobot_eval.rollout(s["vec"], s["policy"], s["env_pre"], s["env_post"], s["pre"],
+                                   s["post"], seeds=[seed], render_callback=render)  # fmt: skip
     success = out["success"][0].numpy()
     done = out["done"][0].numpy()
     steps = int(np.argmax(done)) + 1 if done.any() else len(done)

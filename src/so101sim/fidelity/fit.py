@@ -340,7 +340,14 @@ def fit(
         hp = hold.replay([servos_of(sol.x), servos_of(z_start)])
         held_err, start_held = _mae(hp[0], hreal), _mae(hp[1], hreal)
     return FitResult(
-        profile=replace(best, name=f"{start.name}-fit", source="", uncertainty=_spread(stderr)),
+        profile=replace(
+            best,
+            name=f"{start.name}-fit",
+            description=f"{start.name} fitted to recorded motion by so101sim fit "
+            f"({len(fit_eps)} episode(s))",
+            source="",
+            uncertainty=_spread(stderr),
+        ),
         values=values,
         stderr=stderr,
         fit_episodes=[e.index for e in fit_eps],

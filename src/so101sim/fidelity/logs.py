@@ -278,8 +278,11 @@ def _choose(available: list[int], episodes: list[int] | None, where: str) -> lis
         return available
     missing = [e for e in episodes if e not in available]
     if missing:
+        has = f"episode {available[0]}" if len(available) == 1 else f"episodes {_ranges(available)}"
         raise LogError(
-            f"{where} has no episode {', '.join(map(str, missing))}; it has {_ranges(available)}"
+            f"{where} has no episode {', '.join(map(str, missing))}; expected one of its {has}"
+            if available
+            else f"{where} has no episodes at all"
         )
     return list(episodes)
 

@@ -58,7 +58,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ..errors import SettingError
+from ..errors import ProfileError
 from ..units import JOINT_NAMES
 from ..validation import check_range
 
@@ -94,11 +94,6 @@ PROFILE_DEFAULT = "sts3215"
 OFFICIAL = "official"
 """The profile of the vendored model's own actuators: a model loaded with it is the file as it
 is."""
-
-
-class ProfileError(SettingError):
-    """An arm profile that cannot be found, read or used: an unknown name, a missing file,
-    invalid TOML, an unknown field or a value out of its bounds."""
 
 
 # field -> (low, high, unit, low_open): every number in a profile is bounded
