@@ -217,3 +217,13 @@ def test_follower_and_environments_take_arm():
             assert gripper == pytest.approx(0.5 * load_profile(arm).joint("gripper").torque_limit)
         finally:
             env.close()
+
+
+def test_view_and_teleop_take_arm(capsys):
+    """The commands that simulate the arm take --arm (a bad one is one error line, before any
+    window or port is opened)."""
+    teleop = ["teleop", "--headless", "--port", "/nonexistent", "--arm", "sts9999"]
+    for argv in (["view", "--arm", "sts9999"], teleop):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert "sts9999" in err and "sts3215" in err, argv

@@ -19,7 +19,7 @@ def cmd_view(args: argparse.Namespace) -> int:
     from ..sim.simulation import Simulation  # imported here: they import MuJoCo
     from ..viewer import view
 
-    sim = Simulation(args.model)
+    sim = Simulation(args.model, arm=args.arm)
     view(sim.model, sim.data)
     return 0
 
@@ -127,7 +127,9 @@ def cmd_teleop(args: argparse.Namespace) -> int:
     viewer = choose_viewer(args.headless)
     if viewer.note:
         print(viewer.note)
-    config = robot.SO101SimFollowerConfig(id="teleop", model=args.model, viewer=viewer.use)
+    config = robot.SO101SimFollowerConfig(
+        id="teleop", model=args.model, viewer=viewer.use, arm=args.arm
+    )
     follower = robot.SO101SimFollower(config)
     bus = teleop.FeetechLeaderBus(args.port, calibration=calibration.motors)
     try:

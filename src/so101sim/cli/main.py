@@ -128,7 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_web_options(p)
     p.add_argument("--duration", type=float, default=30.0, help="seconds to hold (default 30)")
     add_web_options(
-        _command(sub, "view", cmd_view, "open the model in MuJoCo's viewer (or --web)", model),
+        _command(sub, "view", cmd_view, "open the model in MuJoCo's viewer (or --web)", model, arm),
         linger=False,
     )
     _command(sub, "model-path", cmd_model_path, "print the folder holding the shipped model")
@@ -137,7 +137,7 @@ def build_parser() -> argparse.ArgumentParser:
     summary = "simulate a motion file headless and judge it before hardware: PASS/FAIL"
     _add_check_options(_command(sub, "check", cmd_check, summary, model, arm, strict))
     summary = "mirror a LeRobot SO-101 leader arm on the sim in real time (Ctrl-C stops)"
-    _add_teleop_options(_command(sub, "teleop", cmd_teleop, summary, model, headless))
+    _add_teleop_options(_command(sub, "teleop", cmd_teleop, summary, model, arm, headless))
     add_commands(sub, recording=recording, model=model, arm=arm)
     from .demo import add_demo_command  # so101sim demo
 

@@ -125,7 +125,7 @@ def view_web(args: argparse.Namespace) -> int:
     from ..sim.simulation import Pacer, Simulation
     from ..studio.live import StudioObserver
 
-    model = load_model(args.model)
+    model = load_model(args.model, arm=getattr(args, "arm", None))
     sim = Simulation(model)
     try:  # from the URL's announcement on, Ctrl-C is the way to stop: it ends with status 0
         with _serving(_studio(sim.model, args)) as studio:
