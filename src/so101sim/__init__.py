@@ -24,6 +24,7 @@ from .errors import (
     ModelError,
     MotionFileError,
     OutputPathError,
+    ProfileError,
     RateError,
     RecordingError,
     RenderBackendError,
