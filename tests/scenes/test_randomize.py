@@ -236,3 +236,23 @@ def test_textures_are_built_in_and_change_only_the_images():
                              "so101sim_texture_checker") < 0  # fmt: skip
     with pytest.raises(SettingError, match="textures"):
         randomization({"textures": 1.5})
+
+
+def test_a_preset_with_families_changed_is_one_string():
+    """What --randomize takes on every command line: a preset, then family=number parts."""
+    got = randomization("light,textures=0.5,distractors=2")
+    assert got.textures == 0.5 and got.distractors == 2 and got.colors == 0.08  # light's
+    assert randomization("friction=0.2") == Randomization(friction=0.2)
+    bad_specs = {
+        "light,paint=1": "no family 'paint'",
+        "light,textures=lots": "number",
+        "textures=0.5,light": "family=number",
+        "light,colors=5": "colors",
+    }
+    for bad, match in bad_specs.items():
+        with pytest.raises(SettingError, match=match):
+            randomization(bad)
+    from so101sim.robot import SO101SimFollowerConfig
+
+    cfg = SO101SimFollowerConfig(scene="pick_cube", randomize="light,textures=0.5")
+    assert cfg.randomize == "light,textures=0.5"

@@ -41,7 +41,7 @@ from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 from so101sim.errors import SettingError
 from so101sim.model.arm import load_profile
 from so101sim.recording import QUALITY_CHOICES
-from so101sim.scenes import PRESET_CAMERAS, SCENE_PRESETS
+from so101sim.scenes import PRESET_CAMERAS, SCENE_PRESETS, randomization
 from so101sim.units import JOINT_NAMES
 from so101sim.validation import check_choice, check_count, check_range
 
@@ -119,7 +119,7 @@ class SO101SimEnvConfig(EnvConfig):
             check_count(getattr(self, name), name, minimum=2, maximum=MAX_IMAGE_SIDE, even=True)
         check_choice(self.quality, "quality", QUALITY_CHOICES)
         check_choice(self.reward, "reward", ("dense", "sparse"))
-        check_choice(self.randomize, "randomize", ("none", "light", "full"))
+        randomization(self.randomize)  # a preset, or one with families changed: raises
         check_choice(self.render_mode, "render_mode", ("rgb_array",))
         if self.arm is not None:
             load_profile(self.arm)  # an unknown profile fails now, naming the known ones

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from so101sim.errors import OutputPathError, SettingError
+from so101sim.scenes import randomization
 from so101sim.validation import check_choice, check_count
 
 TASK_TYPES = {"pick_cube": "PickCube-v0", "cube_to_bowl": "CubeToBowl-v0"}
@@ -61,7 +62,7 @@ class EvalSettings:
         check_count(self.fps, "fps", minimum=1, maximum=500, unit=" Hz")
         if self.episode_length is not None:
             check_count(self.episode_length, "episode_length", minimum=1, maximum=1_000_000)
-        check_choice(self.randomize, "randomize", ("none", "light", "full"))
+        randomization(self.randomize)  # a preset, or one with families changed: raises
         if not Path(self.policy).joinpath("config.json").is_file():
             raise SettingError(
                 f"{self.policy!r} holds no config.json; expected a policy folder as "

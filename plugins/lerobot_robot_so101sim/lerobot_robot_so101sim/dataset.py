@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from so101sim.errors import OutputPathError, SettingError
-from so101sim.scenes import PRESET_CAMERAS, SCENE_PRESETS
+from so101sim.scenes import PRESET_CAMERAS, SCENE_PRESETS, randomization
 from so101sim.units import JOINT_NAMES
 from so101sim.validation import check_choice, check_count, check_range
 
@@ -166,7 +166,7 @@ def dataset_features(settings: DatasetSettings) -> dict[str, dict[str, Any]]:
 
 def _randomize_options(preset: str) -> dict[str, Any]:
     """The environments' keyword for a randomisation preset (``none``: nothing)."""
-    check_choice(preset, "randomize", ("none", "light", "full"))
+    randomization(preset)  # a preset, or one with families changed: raises
     return {} if preset == "none" else {"randomize": preset}
 
 

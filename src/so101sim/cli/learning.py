@@ -52,6 +52,12 @@ def _cameras(text: str) -> tuple[str, ...]:
     return tuple(c for c in text.split(",") if c)
 
 
+RANDOMIZE_HELP = (
+    "none (default), light or full; or a preset with families changed, e.g. "
+    "'light,textures=0.5,distractors=2' (docs/tasks.md)"
+)
+
+
 def add_learning_commands(sub: SubParsers) -> None:
     """Add ``dataset`` and ``eval`` to the parser's subcommands."""
     p = sub.add_parser(
@@ -80,7 +86,7 @@ def add_learning_commands(sub: SubParsers) -> None:
         action="store_true",
         help="also write observation.environment_state (the objects' poses)",
     )
-    p.add_argument("--randomize", default="none", help="none (default), light or full")
+    p.add_argument("--randomize", default="none", help=RANDOMIZE_HELP)
     p.add_argument(
         "--after-success", type=float, default=1.0, help="seconds kept after success (1)"
     )
@@ -105,7 +111,7 @@ def add_learning_commands(sub: SubParsers) -> None:
     p.add_argument("--episodes", type=int, default=10, help="episodes (default 10)")
     p.add_argument("--seed", type=int, default=1000, help="first episode's seed (1000)")
     p.add_argument("--workers", type=int, help="worker processes (default: every core)")
-    p.add_argument("--randomize", default="none", help="none (default), light or full")
+    p.add_argument("--randomize", default="none", help=RANDOMIZE_HELP)
     p.add_argument("--episode-length", type=int, help="steps per episode (default: the task's)")
     p.add_argument("--fps", type=int, default=30, help="policy steps per second (30)")
     p.add_argument("-o", "--output", help="folder for eval.json and the failures' videos")

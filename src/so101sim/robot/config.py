@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import CameraError, JointNameError, RobotConfigError, So101SimError
 from ..model.arm import load_profile
-from ..scenes import SCENE_PRESETS
+from ..scenes import SCENE_PRESETS, randomization
 from ..sim.stepping import MAX_PLAYBACK_SPEED, MIN_PLAYBACK_SPEED
 from ..units import JOINT_NAMES, STARTING_POSE, normalize_joint_name, parse_pose
 from ..validation import (
@@ -151,8 +151,9 @@ class SO101SimFollowerConfig:
     """Share of the gripper actuator's force range the gripper may use (0 < f <= 1)."""
     randomize: str = "none"
     """Domain randomisation of the ``scene`` at each reset of a take
-    (:mod:`so101sim.scenes.randomize`): ``"none"``, ``"light"`` or ``"full"``, drawn from the
-    take's seed after the objects' start poses, as the environments draw it."""
+    (:mod:`so101sim.scenes.randomize`): ``"none"``, ``"light"`` or ``"full"``, or a preset with
+    families changed (``"light,textures=0.5"``), drawn from the take's seed after the objects'
+    start poses, as the environments draw it."""
 
     def __new__(cls, *args: Any, **kwargs: Any) -> SO101SimFollowerConfig:
         # Before the dataclass's __init__, so a field it lacks (a real arm's ``port``) is a
@@ -185,7 +186,10 @@ class SO101SimFollowerConfig:
                 raise RobotConfigError(f"arm: {exc}") from None
         if self.scene is not None:
             check_choice(self.scene, "scene", SCENE_PRESETS, error=RobotConfigError)
-        check_choice(self.randomize, "randomize", RANDOMIZE_CHOICES, error=RobotConfigError)
+        try:
+            randomization(self.randomize)  # a preset, or a preset with families changed
+        except So101SimError as exc:
+            raise RobotConfigError(str(exc)) from None
         if self.randomize != "none" and self.scene is None:
             raise RobotConfigError(
                 f"randomize={self.randomize!r} needs a scene; expected scene='pick_cube' or "

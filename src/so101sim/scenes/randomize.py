@@ -184,10 +184,13 @@ def randomization(value: str | Randomization | Mapping[str, Any] | None) -> Rand
     if isinstance(value, Randomization):
         return value.validated()
     if isinstance(value, str):
+        if "=" in value or "," in value:
+            return randomization(parse_spec(value))
         if value not in PRESETS:
             raise SettingError(
-                f"randomize = {value!r}; expected one of {', '.join(PRESETS)} (or a dict of "
-                f"families: {', '.join(f.name for f in fields(Randomization))})"
+                f"randomize = {value!r}; expected one of {', '.join(PRESETS)}, a preset with "
+                "families changed ('light,textures=0.5,distractors=2') or a dict of families "
+                f"({', '.join(f.name for f in fields(Randomization))})"
             )
         return PRESETS[value]
     if isinstance(value, Mapping):
@@ -201,6 +204,36 @@ def randomization(value: str | Randomization | Mapping[str, Any] | None) -> Rand
             )
         return replace(base, **items).validated()
     raise SettingError(f"randomize = {value!r}; expected none, light, full or a dict of families")
+
+
+def parse_spec(text: str) -> dict[str, Any]:
+    """``"light,textures=0.5,distractors=2"`` (a preset, then families; or families alone, over
+    ``none``) as the dict :func:`randomization` takes: what ``--randomize`` accepts on the
+    command lines (``so101sim dataset``/``eval``, ``--robot.randomize``, ``--env.randomize``).
+
+    Raises:
+        SettingError: a part that is neither a preset nor ``family=number``.
+    """
+    out: dict[str, Any] = {}
+    for i, part in enumerate(p.strip() for p in text.split(",")):
+        if "=" not in part:
+            if i == 0 and part in PRESETS:
+                out["preset"] = part
+                continue
+            raise SettingError(
+                f"randomize {text!r}: {part!r} is not family=number; expected a preset "
+                f"({', '.join(PRESETS)}) first, then family=number parts, e.g. "
+                "'light,textures=0.5,distractors=2'"
+            )
+        key, _, raw = (x.strip() for x in part.partition("="))
+        try:
+            number = float(raw)
+        except ValueError:
+            raise SettingError(
+                f"randomize {text!r}: {key} = {raw!r} is not a number; expected e.g. {key}=0.2"
+            ) from None
+        out[key] = int(number) if key == "distractors" and number.is_integer() else number
+    return out
 
 
 def add_distractors(spec: mujoco.MjSpec, count: int) -> None:
@@ -528,6 +561,7 @@ __all__ = [
     "add_distractors",
     "add_textures",
     "describe",
+    "parse_spec",
     "randomization",
     "scene_additions",
 ]
