@@ -209,7 +209,9 @@ def run_episode(settings: EvalSettings, index: int) -> EpisodeOutcome:
     ok = bool(len(hits))
     video = None
     if not ok and settings.output is not None:
-        video = _write_video(settings, seed, frames)
+        # frame 0 is the reset, frame k the scene after step k; the one after the last step
+        # may already be the vector env's automatic reset (the next episode's scene)
+        video = _write_video(settings, seed, frames[:steps])
     return EpisodeOutcome(
         seed=seed,
         success=ok,

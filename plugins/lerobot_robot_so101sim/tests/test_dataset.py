@@ -103,4 +103,9 @@ def test_so101sim_dataset_trains_with_lerobot_train_and_evaluates(tmp_path):
     assert report["episodes"] == 2 and 0 <= report["successes"] <= 2
     low, high = report["success_interval_95"]
     assert 0.0 <= low <= report["success_rate"] <= high <= 1.0
-    assert "success" in out
+    assert "success" in out and "Running rollout" not in out  # one bar, not one per episode
+    import imageio.v3 as iio
+
+    for ep in report["per_episode"]:
+        if not ep["success"] and ep.get("video"):  # a failure's video: its episode, no more
+            assert iio.improps(ep["video"], plugin="pyav").shape[0] == ep["steps"]
