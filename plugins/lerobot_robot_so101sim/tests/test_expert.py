@@ -206,8 +206,9 @@ def replay_succeeds(actions: np.ndarray, states: np.ndarray, seed: int) -> None:
 
 # ---------------------------------------------------------------------------- LeRobot's loop
 def test_takes_follow_lerobots_episodes_however_slow_the_loop(tmp_path):
-    """LeRobot's own record_loop and dataset writer, three 4 s episodes, the second one slowed
-    down by a sleep before every observation (about 9 Hz instead of 30): every episode starts
+    """LeRobot's own record_loop and dataset writer, three 8 s episodes, the second one slowed
+    down by a sleep before every observation (under 5 Hz instead of 30; the others have twice
+    the time the take needs, so a busy machine still records them whole): every episode starts
     at its take's start pose and holds that one take (no jump back to the start inside an
     episode, no take going on into the next); the slow one is marked failed with a message,
     the others hold a whole demonstration (the cube lifted)."""
@@ -219,7 +220,7 @@ def test_takes_follow_lerobots_episodes_however_slow_the_loop(tmp_path):
     from lerobot.utils.feature_utils import hw_to_dataset_features
 
     teleop_actions, robot_actions, observations = make_default_processors()
-    config = SO101SimExpertConfig(task="pick_cube", episode_time_s=4.0, seed=7)
+    config = SO101SimExpertConfig(task="pick_cube", episode_time_s=8.0, seed=7)
     teleop, arm = make_teleoperator_from_config(config), robot()
     features = {
         **hw_to_dataset_features(arm.action_features, "action", use_video=False),
@@ -233,7 +234,7 @@ def test_takes_follow_lerobots_episodes_however_slow_the_loop(tmp_path):
 
     def observe():
         if slow[0]:
-            wall.sleep(0.08)
+            wall.sleep(0.2)
         return get_observation()
 
     arm.get_observation = observe  # type: ignore[method-assign]
@@ -246,7 +247,7 @@ def test_takes_follow_lerobots_episodes_however_slow_the_loop(tmp_path):
             record_loop(
                 robot=arm, events=events, fps=FPS, teleop_action_processor=teleop_actions,
                 robot_action_processor=robot_actions, robot_observation_processor=observations,
-                dataset=dataset, teleop=teleop, control_time_s=4.0, single_task="pick",
+                dataset=dataset, teleop=teleop, control_time_s=8.0, single_task="pick",
             )  # fmt: skip
             dataset.save_episode()
     finally:
