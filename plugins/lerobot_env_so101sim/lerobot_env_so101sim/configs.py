@@ -85,7 +85,7 @@ class SO101SimEnvConfig(EnvConfig):
     """``dense`` (0..1) or ``sparse`` (1 on success)."""
     randomize: str = "none"
     """Domain randomisation per episode: ``none``, ``light`` or ``full`` (so101sim's presets,
-    ``gym.make(..., randomize=...)``)."""
+    ``gym.make(..., randomize=...)``), or one with families changed (``light,textures=0.5``)."""
     render_mode: str = "rgb_array"
     arm: str | None = None
     """The arm profile (``--env.arm=``): ``sts3215`` (None: the default), ``official``,

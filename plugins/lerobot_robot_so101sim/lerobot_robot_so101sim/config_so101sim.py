@@ -114,7 +114,8 @@ class SO101SimConfig(RobotConfig):
     gripper_torque_fraction: float = 0.5
     randomize: str = "none"
     """Domain randomisation of the ``scene`` at each new take: ``none``, ``light`` or ``full``
-    (so101sim's presets; the same draws as ``gym.make(..., randomize=...)`` for the same seed)."""
+    (so101sim's presets), or one with families changed (``light,textures=0.5``); the same draws
+    as ``gym.make(..., randomize=...)`` for the same seed."""
     environment_state: bool = False
     """Also observe the scene's objects: ``"environment_state"`` in each observation, each
     object's position (m) and quaternion (w, x, y, z), 7 numbers per object, float32, as the
