@@ -225,5 +225,6 @@ def test_view_and_teleop_take_arm(capsys):
     teleop = ["teleop", "--headless", "--port", "/nonexistent", "--arm", "sts9999"]
     for argv in (["view", "--arm", "sts9999"], teleop):
         assert main(argv) == 2, argv
-        err = capsys.readouterr().err
-        assert "sts9999" in err and "sts3215" in err, argv
+        captured = capsys.readouterr()
+        assert "sts9999" in captured.err and "sts3215" in captured.err, argv
+        assert len(captured.err.strip().splitlines()) == 1 and not captured.out, argv

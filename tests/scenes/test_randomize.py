@@ -243,11 +243,13 @@ def test_a_preset_with_families_changed_is_one_string():
     got = randomization("light,textures=0.5,distractors=2")
     assert got.textures == 0.5 and got.distractors == 2 and got.colors == 0.08  # light's
     assert randomization("friction=0.2") == Randomization(friction=0.2)
+    assert randomization(" light , textures = 0.5 ") == randomization("light,textures=0.5")
     bad_specs = {
         "light,paint=1": "no family 'paint'",
         "light,textures=lots": "number",
         "textures=0.5,light": "family=number",
         "light,colors=5": "colors",
+        "light,textures=0.2,textures=0.5": "textures twice",
     }
     for bad, match in bad_specs.items():
         with pytest.raises(SettingError, match=match):

@@ -68,6 +68,11 @@ class EvalSettings:
                 f"{self.policy!r} holds no config.json; expected a policy folder as "
                 f"lerobot-train saves it (.../checkpoints/last/pretrained_model)"
             )
+        if self.output is not None and Path(self.output, "eval.json").exists():
+            raise OutputPathError(
+                f"{self.output!r} holds an earlier evaluation (eval.json, its failure videos); "
+                "expected a new folder for -o (or remove that one)"
+            )
         return self
 
 
@@ -78,6 +83,8 @@ class EpisodeOutcome:
     steps: int
     success_time_s: float | None
     video: str | None = None
+    randomization: dict[str, Any] | None = None
+    """What the episode's scene drew (``--randomize``), as the environment recorded it."""
 
 
 @dataclass(frozen=True)
@@ -193,8 +200,11 @@ def run_episode(settings: EvalSettings, index: int) -> EpisodeOutcome:
     s = _setup(settings)
     seed = settings.seed + index
     frames: list[np.ndarray] = []
+    drawn: list[Any] = []
 
     def render(env: Any) -> None:
+        if not frames:  # the first call follows the episode's reset: its scene's draws
+            drawn.append(getattr(env.envs[0].unwrapped, "randomization", None))
         frames.append(env.envs[0].render())
 
     # one bar for the whole evaluation (ours): rollout()'s per-step bar is off, as LeRobot
@@ -218,6 +228,7 @@ def run_episode(settings: EvalSettings, index: int) -> EpisodeOutcome:
         steps=steps,
         success_time_s=float((hits[0] + 1) / settings.fps) if ok else None,
         video=video,
+        randomization=json.loads(json.dumps(drawn[0], default=float)) if drawn[0] else None,
     )
 
 

@@ -59,3 +59,24 @@ def test_lerobot_eval_runs_two_episodes_of_a_local_policy(tmp_path):
     assert info["per_task"][0]["task_group"] == "so101sim_pick_cube"
     videos = [Path(p) for p in overall["video_paths"]]
     assert len(videos) == 2 and all(p.is_file() and p.stat().st_size > 0 for p in videos)
+
+
+def test_so101sim_eval_refuses_bad_settings_in_one_line_before_any_work(tmp_path, capsys):
+    """A bad --randomize, or an -o that holds an earlier evaluation: one error line, exit 2,
+    no progress bar, nothing written."""
+    from so101sim.cli.main import main
+
+    policy = tmp_path / "policy"
+    policy.mkdir()
+    (policy / "config.json").write_text("{}")
+    out = tmp_path / "eval"
+    out.mkdir()
+    (out / "eval.json").write_text("{}")
+    for argv, word in (
+        (["--randomize", "light,nosuch=1", "-o", str(tmp_path / "new")], "nosuch"),
+        (["-o", str(out)], "earlier evaluation"),
+    ):
+        assert main(["eval", str(policy), "--episodes", "2", *argv]) == 2
+        err = capsys.readouterr().err
+        assert word in err and len(err.strip().splitlines()) == 1 and "episode" not in err
+    assert not (tmp_path / "new").exists() and (out / "eval.json").read_text() == "{}"

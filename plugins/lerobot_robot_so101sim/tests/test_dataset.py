@@ -107,5 +107,6 @@ def test_so101sim_dataset_trains_with_lerobot_train_and_evaluates(tmp_path):
     import imageio.v3 as iio
 
     for ep in report["per_episode"]:
+        assert ep["randomization"] is None  # no --randomize: nothing drawn
         if not ep["success"] and ep.get("video"):  # a failure's video: its episode, no more
             assert iio.improps(ep["video"], plugin="pyav").shape[0] == ep["steps"]

@@ -115,11 +115,13 @@ def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> i
 
 def cmd_teleop(args: argparse.Namespace) -> int:
     from .. import robot  # imported here: they import MuJoCo
+    from ..model.arm import load_profile
     from ..robot import teleop
     from ..robot.helpers import check_fps
     from ..viewer import choose_viewer
 
-    # Check the numbers before opening anything (port, robot, viewer).
+    # Check the numbers and the arm before opening anything (port, robot, viewer).
+    load_profile(args.arm)
     fps = check_fps(args.fps)
     duration = check_duration(args.duration) if args.duration is not None else None
     calibration = teleop.find_calibration(args.calibration, args.id)

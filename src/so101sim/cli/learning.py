@@ -185,7 +185,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         output=args.output,
         max_videos=args.max_videos,
         device=args.device,
-    )
+    ).checked()  # every setting before the bar: an error is its only line
     bar = tqdm(total=args.episodes, unit="episode", disable=args.no_progress, file=sys.stderr)
     try:
         report = module.evaluate_policy(settings, lambda _: bar.update(1))

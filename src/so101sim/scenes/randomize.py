@@ -184,6 +184,7 @@ def randomization(value: str | Randomization | Mapping[str, Any] | None) -> Rand
     if isinstance(value, Randomization):
         return value.validated()
     if isinstance(value, str):
+        value = value.strip()
         if "=" in value or "," in value:
             return randomization(parse_spec(value))
         if value not in PRESETS:
@@ -232,6 +233,8 @@ def parse_spec(text: str) -> dict[str, Any]:
             raise SettingError(
                 f"randomize {text!r}: {key} = {raw!r} is not a number; expected e.g. {key}=0.2"
             ) from None
+        if key in out:
+            raise SettingError(f"randomize {text!r} gives {key} twice; expected each family once")
         out[key] = int(number) if key == "distractors" and number.is_integer() else number
     return out
 
