@@ -42,8 +42,9 @@ NOT_CONNECTED = "SO101SimFollower is not connected. Run `.connect()` first."
 def lerobot_style_script(robot, goal, *, move_s=1.0, hold_s=0.4, fps=50, settle_s=0.0):
     """A script as written for the real arm through LeRobot: connect, read the arm, send goals in
     a 50 Hz loop with time.sleep, read, disconnect. It knows nothing of the simulation, but
-    for ``settle_s`` > 0 the test waits until that much simulated time has passed (however busy
-    the machine) before the last reading."""
+    for ``settle_s`` > 0 the test waits until that much simulated time has passed, and at least
+    ``hold_s`` simulated seconds since the last goal was sent (however busy the machine, the
+    arm had that long in simulated time), before the last reading."""
     robot.connect()
     obs = robot.get_observation()
     start = {k: obs[k] for k in robot.action_features}
@@ -54,6 +55,7 @@ def lerobot_style_script(robot, goal, *, move_s=1.0, hold_s=0.4, fps=50, settle_
         robot.send_action(action)
         time.sleep(1 / fps)
         observations.append(robot.get_observation())
+    settle_s = max(settle_s, robot.time + hold_s) if settle_s else 0.0
     for _ in range(round(hold_s * fps)):
         time.sleep(1 / fps)
         observations.append(robot.get_observation())

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..model.arm import ArmProfile, ServoParams, load_profile
+from ..model.arm import UNCERTAIN_FIELDS, ArmProfile, ServoParams, load_profile
 from .bench import BenchBatch, BenchRig, bench_servo
 from .benchdata import BenchRun
 
@@ -63,18 +63,9 @@ def summarize(runs: Sequence[BenchRun], errors: np.ndarray) -> dict[str, float]:
 
 
 # ---------------------------------------------------------------------------- fitting
-FIT_PARAMS: tuple[str, ...] = (
-    "kp_per_p",
-    "torque_limit",
-    "damping",
-    "viscous",
-    "frictionloss",
-    "drive_frictionloss",
-    "armature",
-    "delay_s",
-    "max_velocity",
-)
-"""The servo fields the bench fit identifies. Back-EMF (``damping``) and viscous friction are
+FIT_PARAMS: tuple[str, ...] = tuple(n for n in UNCERTAIN_FIELDS if n != "offset")
+"""The servo fields the bench fit identifies: those a profile's ``[uncertainty]`` may name but
+the calibration offset (a pendulum bench has none). Back-EMF (``damping``) and viscous friction are
 told apart, as are the mechanical and the drive's Coulomb friction, by the runs where the servo
 lets go (lift-and-drop's free fall from about 2 s)."""
 
