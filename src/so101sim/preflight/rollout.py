@@ -49,7 +49,7 @@ from ..model.cache import load_or_compile
 from ..model.load import arm_index, arm_units
 from ..motion.plan import plan_segments
 from ..motion.segments import Hold, Segment
-from ..sim.limited import ShortMove, check_limited_moves
+from ..sim.limited import ShortMove
 from ..sim.simulation import Simulation
 from ..sim.stepping import Observer, advance, step_block
 from ..units import GRIPPER, JOINT_NAMES, ArmUnits, Pose
@@ -92,11 +92,9 @@ def plan_motion(
 ) -> MotionPlan:
     """Plan ``steps`` from ``start`` (checked as the single check checks them)."""
     sim = Simulation(model, initial_pose=start)
-    stretched = check_limited_moves(
-        sim.commanded_array(), steps, sim.timestep, units=sim.units, strict=strict
-    )
     units = sim.units
-    planned = plan_segments(model, steps, sim.commanded_array())  # once, every segment checked
+    # once, every segment checked (with ``strict``, a limited move too short refused)
+    planned = plan_segments(model, steps, sim.commanded_array(), strict=strict)
     rows = [np.asarray(p.targets) for p in planned.segments]
     sizes = [len(r) for r in rows]
     return MotionPlan(
@@ -106,7 +104,7 @@ def plan_motion(
         targets=units.to_radians(np.vstack(rows)),
         bounds=np.concatenate([[0], np.cumsum(sizes)]).astype(int),
         start=units.to_radians(units.pose_to_array(start)),
-        stretched=tuple(stretched),
+        stretched=planned.stretched,
     )
 
 
