@@ -39,7 +39,7 @@ from lerobot.envs.configs import EnvConfig
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
 from so101sim.errors import SettingError
-from so101sim.model.arm import load_profile
+from so101sim.model import load_profile
 from so101sim.recording import QUALITY_CHOICES
 from so101sim.scenes import PRESET_CAMERAS, SCENE_PRESETS, randomization
 from so101sim.units import JOINT_NAMES

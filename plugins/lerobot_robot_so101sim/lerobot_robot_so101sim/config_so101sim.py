@@ -21,9 +21,9 @@ from lerobot.cameras import CameraConfig
 from lerobot.robots import RobotConfig
 from lerobot.teleoperators import TeleoperatorConfig
 
+from so101sim import load_motion
 from so101sim.errors import RobotConfigError
 from so101sim.model import arm_units, load_model
-from so101sim.motion.file import load_motion
 from so101sim.robot import SO101SimFollowerConfig
 from so101sim.units import STARTING_POSE
 from so101sim.validation import check_choice, check_count, check_range

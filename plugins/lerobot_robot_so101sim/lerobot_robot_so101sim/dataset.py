@@ -82,7 +82,7 @@ class DatasetSettings:
         Raises:
             SettingError: a value out of range (the message says what was expected).
         """
-        from so101sim.envs.run import TASKS
+        from so101sim.envs import TASKS
 
         check_choice(self.task, "task", TASKS)
         check_count(self.episodes, "episodes", minimum=1, maximum=MAX_EPISODES)
@@ -172,7 +172,7 @@ def _randomize_options(preset: str) -> dict[str, Any]:
 
 def _simulate(settings: DatasetSettings, seed: int) -> tuple[Any, float]:
     """In a worker: one episode (so101sim's, no LeRobot import) and its wall time."""
-    from so101sim.envs.run import expert_frames
+    from so101sim.envs import expert_frames
 
     start = time.perf_counter()
     frames = expert_frames(
@@ -234,7 +234,7 @@ def _episodes(settings: DatasetSettings, seeds: list[int]) -> Iterator[Episode]:
     The workers run so101sim's :func:`~so101sim.envs.run.expert_frames` (plain arguments, so
     they import nothing of LeRobot or of this plugin); this process turns each into an
     :class:`Episode`."""
-    from so101sim.envs.run import expert_frames
+    from so101sim.envs import expert_frames
 
     kwargs = _frames_kwargs(settings)
     if settings.use_ray:

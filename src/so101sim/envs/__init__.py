@@ -14,6 +14,10 @@ Actions are joint targets in the arm's units (absolute, or deltas), or end-effec
 (:mod:`.actions`); observations a dict whose keys map onto LeRobot's (:mod:`.base`); tasks,
 success and rewards in :mod:`.tasks`; the experts in :mod:`.expert`, run by
 :func:`run_expert` and :func:`evaluate_expert`. See docs/tasks.md.
+
+May import: ``so101sim.robot`` (the gripper's torque), ``so101sim.recording``,
+``so101sim.viewer``, ``so101sim.scenes``, ``so101sim.motion``, ``so101sim.sim``,
+``so101sim.kinematics``, ``so101sim.model``, ``so101sim.units`` and the base modules.
 """
 
 import gymnasium as gym

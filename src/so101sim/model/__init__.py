@@ -1,11 +1,13 @@
 """The model layer: the shipped SO-101 model loaded once, its compiled cache, its physics-only copy.
 
-May import: ``so101sim.errors``, ``so101sim.validation``, ``so101sim.units`` (and MuJoCo).
 Modules: :mod:`.load` (``load_model``, ``scene_path``, the arm's units and indices),
 :mod:`.cache` (compiled models kept between runs), :mod:`.trim` (the physics-only model),
 :mod:`.twin` (a loaded model with a contact sensor, for the stepping kernel's contact counts).
+
+May import: ``so101sim.units`` and the base modules (and MuJoCo).
 """
 
+from .arm import load_profile
 from .load import (
     ArmIndex,
     arm_index,
@@ -24,6 +26,7 @@ __all__ = [
     "arm_units",
     "default_units",
     "load_model",
+    "load_profile",
     "loaded_models",
     "model_dir",
     "model_source",
