@@ -284,9 +284,9 @@ def _public(module: str, name: str) -> bool:
     parts = module.split(".")
     if len(parts) > 2 or any(p.startswith("_") for p in parts) or name.startswith("_"):
         return False
-    if len(parts) == 2 and not (PACKAGE / parts[1] / "__init__.py").is_file():
-        if parts[1] not in TOP_LEVEL_MODULES:
-            return False
+    inner = len(parts) == 2 and not (PACKAGE / parts[1] / "__init__.py").is_file()
+    if inner and parts[1] not in TOP_LEVEL_MODULES:
+        return False
     mod = importlib.import_module(module)
     public = getattr(mod, "__all__", None)
     if public is not None and name in public:

@@ -28,9 +28,9 @@ def test_every_linked_file_exists(doc):
     missing = []
     for link in _LINK.findall(doc.read_text(encoding="utf-8")):
         target = link.split("#", 1)[0]
-        if target and not re.match(r"[a-z][a-z0-9+.-]*:", target):  # not a URL or an anchor
-            if not (doc.parent / target).exists():
-                missing.append(target)
+        url = re.match(r"[a-z][a-z0-9+.-]*:", target)
+        if target and not url and not (doc.parent / target).exists():  # not a URL or anchor
+            missing.append(target)
     assert not missing, f"{doc.name} links to files that do not exist: {missing}"
 
 
