@@ -10,6 +10,10 @@ May import: ``so101sim.recording`` (plots of robust runs), ``so101sim.motion``,
 modules.
 """
 
+import sys
+import types
+import warnings
+
 from .check import (
     Contact,
     Finding,
@@ -22,6 +26,24 @@ from .check import (
     format_report,
     preflight,
 )
+
+
+class _CallablePackage(types.ModuleType):
+    """``so101sim.preflight`` was the function :func:`~.check.preflight` or this package
+    depending on import order; it is the package now, and calling it still runs the function,
+    with a DeprecationWarning, for one release."""
+
+    def __call__(self, *args, **kwargs):
+        warnings.warn(
+            "calling so101sim.preflight(...) is deprecated: so101sim.preflight is the "
+            "subpackage; call so101sim.preflight.preflight(...) instead",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return preflight(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallablePackage
 
 __all__ = [
     "Contact",
