@@ -1,7 +1,8 @@
 """The preflight: simulate a motion headless and judge it before it runs on hardware.
 
 Modules: :mod:`.check` (``preflight``, ``check_motion_file``), :mod:`.measure`, :mod:`.judge`,
-:mod:`.rollout` (variants rolled out in C), :mod:`.variants` (perturbed models),
+:mod:`.rollout` (variants rolled out in C), :mod:`.accumulate` (their figures, block by
+block), :mod:`.variants` (perturbed models),
 :mod:`.robust` (``check --variants``), :mod:`.report` (its report), :mod:`.distributed` (the
 variants over Ray), :mod:`.states` and :mod:`.screen` (the lab helpers' figures after a block).
 
