@@ -42,8 +42,9 @@ The default limit margin is 1°: the shipped rest pose holds ``shoulder_lift`` a
 its −100° limit, so the lab motion passes; a target at a limit, or within a degree of it, fails.
 (A target beyond a limit never gets this far: the motion-file loader refuses it.)
 
-The run is the same physics as ``so101sim run`` (same steps, bit for bit), observed after every
-physics step, so it is slower than a plain run.
+The run is the same physics as ``so101sim run`` (same steps, bit for bit), stepped in whole
+blocks in C; every physics step's figures are derived from what the blocks recorded
+(:mod:`so101sim.preflight.states`), so a check costs about what a plain run costs.
 
 Three parts: :mod:`so101sim.preflight.measure` runs the motion and measures it,
 :mod:`so101sim.preflight.judge` compares the figures with the :class:`Thresholds` once, and this
