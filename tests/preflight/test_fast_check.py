@@ -76,3 +76,16 @@ def test_a_long_tip_line_is_checked_in_blocks(monkeypatch):
     )
     assert fast == slow and fast.passed
     assert blocks <= 3  # 10,000 steps in blocks of 4096
+
+
+def test_check_plans_a_files_tip_line_once(monkeypatch, tmp_path):
+    import so101sim.kinematics as kinematics
+
+    path = tmp_path / "tip.toml"
+    path.write_text("[[steps]]\nmove = { tip = [0.20, 0.0, 0.05], pitch = -90 }\nduration = 0.5\n")
+    calls = []
+    real = kinematics.plan_line
+    monkeypatch.setattr(kinematics, "plan_line", lambda *a, **k: calls.append(1) or real(*a, **k))
+    report = check_motion_file(path)
+    assert len(calls) == 1  # by the loader; the check reuses it (MotionFile.tip_plans)
+    assert report.steps[0].line_deviation_mm is not None

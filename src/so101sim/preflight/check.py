@@ -54,12 +54,13 @@ the public entry points, :func:`preflight` and :func:`check_motion_file`.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import mujoco
+import numpy as np
 
 from ..model.load import arm_units, load_model
 from ..motion.file import load_motion
@@ -116,6 +117,7 @@ def preflight(
     lines: Sequence[int] = (),
     strict: bool = False,
     arm: object = None,
+    known: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> PreflightReport:
     """Simulate ``steps`` headless from ``start`` (at rest) and judge them.
 
@@ -125,6 +127,7 @@ def preflight(
 
     ``lines`` (the motion file's line of each step) only label the report. With ``strict``,
     a ``limited`` move shorter than the joint limits allow raises TrajectoryLimitError first.
+    ``known``: tip moves already planned on ``model`` (``MotionFile.tip_plans``).
 
     Raises:
         So101SimError: an invalid step (bad target, duration, profile), or strict refusal.
@@ -132,7 +135,13 @@ def preflight(
     th = thresholds if thresholds is not None else Thresholds()
     m = model if isinstance(model, mujoco.MjModel) else load_model(model, arm=arm)
     measured = measure(
-        steps, start=start, model=m, saturation_level=th.max_effort, lines=lines, strict=strict
+        steps,
+        start=start,
+        model=m,
+        saturation_level=th.max_effort,
+        lines=lines,
+        strict=strict,
+        known=known,
     )
     findings = judge(measured, th)
     return PreflightReport(
@@ -163,6 +172,7 @@ def check_motion_file(
         thresholds=thresholds,
         lines=motion.lines,
         strict=strict,
+        known=motion.tip_plans,  # the loader's tip lines, planned on m: not solved again
     )
 
 

@@ -14,7 +14,7 @@ compares the figures with the thresholds.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import mujoco
@@ -122,15 +122,18 @@ def measure(
     saturation_level: float,
     lines: Sequence[int] = (),
     strict: bool = False,
+    known: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> Measurements:
     """Run ``steps`` headless from ``start`` (at rest) and measure every step.
 
     ``saturation_level`` is the effort (fraction of the force limit) above which a joint
     counts as saturated; ``lines`` only label the steps. With ``strict``, a ``limited`` move
     too short for the joint limits raises TrajectoryLimitError before anything moves.
+    ``known``: tip moves already planned on ``model`` (``MotionFile.tip_plans``), not solved
+    again.
     """
     sim = Simulation(model, initial_pose=start)
-    plan = plan_segments(model, steps, sim.commanded_array(), strict=strict)
+    plan = plan_segments(model, steps, sim.commanded_array(), strict=strict, known=known)
     # whole blocks stepped in C, the samples derived from what they recorded (bit for bit the
     # step recorder's); a model where they cannot be is watched after every step
     rec = StateRecorder(model) if derivable(model) else StepRecorder(model)
