@@ -94,3 +94,29 @@ def test_validate_segments_is_deprecated_for_the_planner():
     with pytest.warns(DeprecationWarning), pytest.raises(DurationError):
         validate_segments(model, [Move(ZERO_POSE, 0.0)])
     assert np.isfinite(plan_segments(model, [Move(ZERO_POSE, 1.0)], STARTING_POSE).duration)
+
+
+TIP_THEN_LIMITED_FILE = """\
+[[steps]]
+move = { tip = [0.22, 0.0, 0.08], pitch = -60 }
+duration = 1.0
+[[steps]]
+move = "zero"
+duration = 0.05
+profile = "limited"
+name = "snap"
+"""
+
+
+def test_run_strict_check_strict_and_a_plain_check_say_the_same_number(tmp_path, capsys):
+    from so101sim import cli
+
+    path = tmp_path / "snap.toml"
+    path.write_text(TIP_THEN_LIMITED_FILE)
+    assert cli.main(["run", "--headless", "--strict", str(path)]) == 2
+    run_says = _needed_in(capsys.readouterr().err)
+    assert cli.main(["check", "--strict", str(path)]) == 2
+    check_says = _needed_in(capsys.readouterr().err)
+    assert cli.main(["check", str(path)]) in (0, 1)
+    stretched = re.findall(r"stretched from 0\.050 s to (\d+\.\d{3}) s", capsys.readouterr().out)
+    assert run_says == check_says == float(stretched[0])
