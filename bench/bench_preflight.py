@@ -9,7 +9,9 @@ physics steps, its line checked). For each, interleaved, best of ``--repeats``:
   steps: nearly pure C, the same poses, hence the same contact and solver work) -- the floor;
 * a plain headless run (``run_plan``: what ``so101sim run --headless`` steps);
 * the preflight (``so101sim.preflight.preflight``: plan, run, measure, judge), the model loaded
-  once before (start-up aside).
+  once before (start-up aside);
+* the same preflight watching every physics step from Python (the step recorder: how the
+  check ran before issue 30; ``--no-per-step`` leaves it out).
 
 The last lines print the preflight over raw ``mj_step`` (goal on the 60 s motion: at most 2x).
 """
@@ -27,7 +29,7 @@ from so101sim.model import arm_index, load_model
 from so101sim.motion import Move
 from so101sim.motion.file import lab_motion_path, load_motion
 from so101sim.motion.plan import plan_segments, run_plan
-from so101sim.preflight import preflight
+from so101sim.preflight import measure, preflight
 from so101sim.sim.simulation import Simulation
 from so101sim.units import STARTING_POSE
 
@@ -65,17 +67,28 @@ def runners(m: mujoco.MjModel, steps: tuple, start: dict) -> dict[str, Callable[
     def checked() -> None:
         preflight(steps, start=start, model=m)
 
-    return {"raw mj_step": raw, "plain run": plain, "preflight": checked}
+    def per_step() -> None:
+        derivable = measure.derivable
+        measure.derivable = lambda model: False  # the step recorder, called after every step
+        try:
+            preflight(steps, start=start, model=m)
+        finally:
+            measure.derivable = derivable
+
+    return {"raw mj_step": raw, "plain run": plain, "preflight": checked, "per step": per_step}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("motion", nargs="?", help="a motion file (default: the two motions)")
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--no-per-step", action="store_true", help="skip the per-step check")
     args = parser.parse_args()
     m = load_model()
     for name, steps, start in motions(args.motion, m):
         fns = runners(m, steps, start)
+        if args.no_per_step:
+            del fns["per step"]
         for fn in fns.values():
             fn()  # warm up (the contact twin, the kinematics)
         best = dict.fromkeys(fns, np.inf)
@@ -87,7 +100,7 @@ def main() -> None:
         sim_time = sum(s.duration for s in steps)
         print(f"{name} ({sim_time:g} s simulated), best of {args.repeats}:")
         for key, t in best.items():
-            print(f"  {key:<12}: {t * 1000:9.1f} ms   {t / best['raw mj_step']:5.2f}x raw")
+            print(f"  {key:<11}: {t * 1000:9.1f} ms   {t / best['raw mj_step']:6.2f}x raw")
     print("goal: the preflight of the 60 s motion at most 2x raw mj_step")
 
 
