@@ -120,3 +120,14 @@ def test_run_strict_check_strict_and_a_plain_check_say_the_same_number(tmp_path,
     assert cli.main(["check", str(path)]) in (0, 1)
     stretched = re.findall(r"stretched from 0\.050 s to (\d+\.\d{3}) s", capsys.readouterr().out)
     assert run_says == check_says == float(stretched[0])
+
+
+def test_a_limited_tip_move_in_joint_space_is_checked_too():
+    model = load_model()
+    steps = [Move.to_tip((0.22, 0.05, 0.08), 0.05, pitch=-60, path="joint", profile="limited")]
+    [short] = plan_segments(model, steps, STARTING_POSE).stretched
+    assert short.index == 0 and short.needed > 0.05
+    with pytest.raises(TrajectoryLimitError, match=f"at least {short.needed:.3f} s"):
+        plan_segments(model, steps, STARTING_POSE, strict=True)
+    ok = [Move.to_tip((0.22, 0.05, 0.08), 3.0, pitch=-60, path="joint", profile="limited")]
+    assert plan_segments(model, ok, STARTING_POSE, strict=True).stretched == ()

@@ -157,6 +157,10 @@ def plan_segments(
                     profile=seg.profile,
                 )  # fmt: skip
             entry = PlannedSegment(seg, current, targets, len(targets))
+            prof = get_profile(seg.profile, units)
+            if seg.path == "joint" and isinstance(prof, LimitedProfile):  # to the IK's goal
+                short = short_move(prof, i, seg.phase, current, targets[-1], n, dt)
+                stretched += [short] if short is not None else []
         else:
             prof = get_profile(seg.profile, units)
             if isinstance(prof, LimitedProfile):
