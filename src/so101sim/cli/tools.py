@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import MotionFileError, RecordingError
+from .output import _say
 from .studio import add_web_options
 
 SubParsers = Any  # argparse's private _SubParsersAction
@@ -189,6 +190,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     VideoSettings(**video).validated()  # a bad setting stops before the script runs
     options = {**video, "plot": args.plot, "log": args.log, "force": args.force}
     options["arm"] = args.arm
+    options["say"] = lambda text: _say(f"so101sim record: {text}", err=True)
     if args.web:  # the script live in a browser (cli/studio.py)
         from .studio import record_web
 
@@ -208,6 +210,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     for kind, path in run.outputs.items():
         print(f"wrote the {kind} to {path}")
     print(f"{args.script}: {run.simulated_seconds:.3f} s of simulated time")
+    print(f"servo model: {run.servo_model}")
     return run.exit_status
 
 
