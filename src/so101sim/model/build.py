@@ -80,7 +80,7 @@ class ModelRecipe:
         try:
             spec = mujoco.MjSpec.from_file(str(self.file))
         except (ValueError, mujoco.FatalError) as exc:
-            raise ModelError(f"model file {str(self.file)!r} cannot be read: {exc}") from exc
+            raise ModelError(f"model file {str(self.file)!r} does not compile: {exc}") from exc
         if self.arm_key:  # "": the file's own actuators, as they are
             apply_profile(spec, self.arm)
         for addition in self.additions:
