@@ -270,6 +270,27 @@ def run_script(
     return ScriptRun(status, outputs, clock.elapsed(), message, servo)
 
 
+def script_line(exc: BaseException, script: str | os.PathLike[str]) -> str:
+    """Where in ``script`` ``exc`` came from, as ``file:line`` (the innermost frame of the
+    script's own code in its traceback; a syntax error's own line), or "" when it did not
+    pass through the script."""
+    try:
+        target = Path(script).resolve()
+    except OSError:
+        return ""
+    if isinstance(exc, SyntaxError) and exc.filename and exc.lineno:
+        with contextlib.suppress(OSError):
+            if Path(exc.filename).resolve() == target:
+                return f"{script}:{exc.lineno}"
+    line, tb = 0, exc.__traceback__
+    while tb is not None:
+        with contextlib.suppress(OSError):
+            if Path(tb.tb_frame.f_code.co_filename).resolve() == target:
+                line = tb.tb_lineno
+        tb = tb.tb_next
+    return f"{script}:{line}" if line else ""
+
+
 def _exit_status(code: object) -> tuple[int, str]:
     """Python's rule for ``sys.exit(code)``: None is 0, an int is itself, anything else is
     printed (by the caller) and is 1."""
@@ -288,4 +309,5 @@ __all__ = [
     "hold_start",
     "record",
     "run_script",
+    "script_line",
 ]

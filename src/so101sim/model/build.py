@@ -225,6 +225,15 @@ def recognise(model: mujoco.MjModel) -> ModelRecipe | None:
     return None
 
 
+def servo_name(model: mujoco.MjModel) -> str:
+    """The short name of ``model``'s servo model: its profile's name, ``"official"`` (the
+    file's own actuators) or ``"unknown"`` (see :func:`servo_model`)."""
+    r = recognise(model)
+    if r is None:
+        return "unknown"
+    return r.arm.name if r.arm_key else OFFICIAL
+
+
 def servo_model(model: mujoco.MjModel | None = None, arm: ArmLike = None) -> str:
     """The servo model a run used, in words, for every output to name, e.g. ``"sts3215
     (STS3215 fitted on a real servo bench ...)"`` or ``"official (the model file's own ideal
@@ -255,4 +264,5 @@ __all__ = [
     "recipe_of",
     "recognise",
     "servo_model",
+    "servo_name",
 ]
