@@ -33,7 +33,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from ..errors import ModelError
+from ..errors import ModelError, So101SimError
 from ..validation import check_input_file
 from .arm import OFFICIAL, ArmLike, ArmProfile, apply_profile, load_profile, profile_key
 from .cache import load_or_compile
@@ -169,6 +169,8 @@ def _compile(r: ModelRecipe, *, cached: bool = False) -> mujoco.MjModel:
             )
         else:
             model = compile_fn()
+    except So101SimError:  # an addition's own error (a camera given twice) says it best
+        raise
     except (ValueError, mujoco.FatalError) as exc:
         raise ModelError(f"model file {str(r.file)!r} does not compile: {exc}") from exc
     arm_index(model)  # fail now, not at the first command, if joints are missing
