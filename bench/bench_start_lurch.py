@@ -15,7 +15,7 @@ import numpy as np
 
 from so101sim.model import load_model
 
-START = np.radians([0.0, -98.0, 88.0, 60.0, 0.0]).tolist() + [0.0]
+START = [*np.radians([0.0, -98.0, 88.0, 60.0, 0.0]).tolist(), 0.0]
 
 for arm in ("sts3215", "official"):
     for written in (False, True):

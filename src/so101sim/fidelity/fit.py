@@ -99,8 +99,9 @@ class ArmReplayer:
         wide = replace(base, servo=replace(base.servo, delay_s=MAX_DELAY_S),
                        joints={j: {k: v for k, v in d.items() if k != "delay_s"}
                                for j, d in base.joints.items()})  # fmt: skip
-        # the model builder's (cached); the batch's copies are what the fit writes into
-        self.model = build(recipe(model_path, arm=wide))
+        # the model builder's, a one-off (not cached); the batch's copies are what the fit
+        # writes into
+        self.model = build(recipe(model_path, arm=wide, keep=False))
         self.index = arm_index(self.model)
         self.units: ArmUnits = arm_units(self.model)
         self.threads = check_count(

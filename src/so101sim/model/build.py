@@ -59,17 +59,19 @@ class ModelRecipe:
     """What model to make: ``file`` (an MJCF file, resolved), the arm profile ``arm`` (the
     servos' actuator model; ``arm_key`` is ``""`` for the file's own actuators), the
     ``additions`` (scene, cameras, sensors) and whether it is the ``physics_only`` model (no
-    visual geoms, convex collision meshes: :mod:`so101sim.model.trim`)."""
+    visual geoms, convex collision meshes: :mod:`so101sim.model.trim`); ``keep=False``: made
+    each time it is asked for, in neither cache (a one-off profile such as a fit's)."""
 
     file: Path
     arm: ArmProfile = field(compare=False)
     arm_key: str = ""
     additions: tuple[Addition, ...] = ()
     physics_only: bool = False
+    keep: bool = True  # False: a one-off model (a fit's profile), kept in neither cache
 
     @property
     def cacheable(self) -> bool:
-        return all(a.key is not None for a in self.additions)
+        return self.keep and all(a.key is not None for a in self.additions)
 
     def with_additions(self, *more: Addition) -> ModelRecipe:
         """This recipe with ``more`` added after its own additions."""
@@ -94,6 +96,7 @@ def recipe(
     arm: ArmLike = None,
     additions: tuple[Addition, ...] = (),
     physics_only: bool = False,
+    keep: bool = True,
 ) -> ModelRecipe:
     """A checked :class:`ModelRecipe`: ``file`` (None: the shipped ``scene.xml``) must be a
     readable file and ``arm`` a profile (None: the default, ``sts3215``).
@@ -108,7 +111,8 @@ def recipe(
     else:  # empty, too long, missing, a folder, a device: one line saying so, no OSError
         expected = f"an MJCF file such as the shipped {str(scene_path())!r}"
         p = check_input_file(file, "model file", expected=expected, error=ModelError)
-    return ModelRecipe(p.resolve(), prof, profile_key(prof), tuple(additions), physics_only)
+    key = profile_key(prof)
+    return ModelRecipe(p.resolve(), prof, key, tuple(additions), physics_only, keep)
 
 
 _lock = threading.Lock()  # guards the tables below; never held while compiling
