@@ -108,3 +108,18 @@ def test_record_arm_on_the_shipped_examples_with_an_empty_cache_does_not_hang(tm
     assert "servo model: sts3215" in done.stdout
     assert done.stderr.count("--arm sts3215") == 1, done.stderr
     assert (tmp_path / "v.mp4").stat().st_size > 0
+
+
+def test_record_arm_leaves_a_model_loaded_through_so101sim_and_says_so(tmp_path, capsys):
+    script = tmp_path / "api.py"
+    script.write_text(
+        "import mujoco, mujoco.viewer\n"
+        "from so101sim.model import load_model\n"
+        "m = load_model(); d = mujoco.MjData(m)\n"
+        "with mujoco.viewer.launch_passive(m, d) as v:\n"
+        "    mujoco.mj_step(m, d); v.sync()\n"
+    )
+    run, said = _record(tmp_path, script, "official")
+    capsys.readouterr()
+    assert run.servo_model.startswith("sts3215 (")  # what the script asked so101sim for
+    assert len(said) == 1 and "does not change a model the script loaded" in said[0], said

@@ -15,8 +15,10 @@ its objects; what it sees is the shadow's physics:
   the next step of the script starts where the profile's servos put the arm (a pose the
   script writes into ``d.qpos`` between steps of such a loop is overwritten).
 
-A model it cannot name (an edited file) runs with its own actuators; it says so once. Each
-change of what the script would get is said once (``say``: the CLI prints it; else logged).
+A model it cannot name (an edited file) runs with its own actuators, and a model the script
+loaded through so101sim (``load_model``, ``Simulation``: the profile it asked for, by default
+``sts3215``) keeps its profile; either is said once, as is each change of what the script would
+get (``say``: the CLI prints it; else logged).
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ import mujoco
 import numpy as np
 
 from ..model.arm import ArmLike, fill_delay_history, load_profile, profile_key
-from ..model.build import build, recognise, servo_model
+from ..model.build import build, recipe_of, recognise, servo_model
 from ..sim.simulation import Simulation
 from ..sim.stepping import advance_unobserved
 
@@ -114,10 +116,18 @@ class ScriptArm:
         profile or cannot be named (said once)."""
         if d in self._shadows:
             return self._shadows[d]
-        r = recognise(m)
         name = f"--arm {self.profile.name}"
         shadow = None
-        if r is None:
+        own = recipe_of(m)
+        r = recognise(m) if own is None else None
+        if own is not None:  # loaded through so101sim: the profile the script asked for
+            if own.arm_key != self.key:
+                self.note(
+                    f"{name} does not change a model the script loaded through so101sim "
+                    f"(load_model, Simulation): it runs with {servo_model(m)}; pass arm= "
+                    "there to choose"
+                )
+        elif r is None:
             self.note(
                 f"{name} cannot apply to the script's model: it is not the shipped scene.xml "
                 "nor one so101sim built; it runs with its own actuators"
