@@ -123,3 +123,25 @@ def test_record_arm_leaves_a_model_loaded_through_so101sim_and_says_so(tmp_path,
     capsys.readouterr()
     assert run.servo_model.startswith("sts3215 (")  # what the script asked so101sim for
     assert len(said) == 1 and "does not change a model the script loaded" in said[0], said
+
+
+def test_a_typo_in_a_recorded_script_names_its_file_and_line(tmp_path, capsys):
+    from so101sim.cli import main
+
+    joint = tmp_path / "joint.py"
+    joint.write_text(
+        "import mujoco\n"
+        "from so101sim.lab import move_to_pose\n"
+        "from so101sim.model import scene_path\n"
+        "m = mujoco.MjModel.from_xml_path(str(scene_path()))\n"
+        "d = mujoco.MjData(m)\n"
+        "move_to_pose(m, d, None, {'elbow_flx': 3.0}, 1.0)\n"
+    )
+    assert main(["record", str(joint), "-o", str(tmp_path / "j.mp4")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{joint}:6: unknown joint 'elbow_flx'" in err[0], err
+    syntax = tmp_path / "syntax.py"
+    syntax.write_text("import mujoco\nx = 1\nprint(x\n")
+    assert main(["record", str(syntax), "-o", str(tmp_path / "s.mp4")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == f"so101sim: {syntax}:3 raised SyntaxError", err
