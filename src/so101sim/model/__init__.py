@@ -2,12 +2,15 @@
 
 Modules: :mod:`.load` (``load_model``, ``scene_path``, the arm's units and indices),
 :mod:`.cache` (compiled models kept between runs), :mod:`.trim` (the physics-only model),
-:mod:`.twin` (a loaded model with a contact sensor, for the stepping kernel's contact counts).
+:mod:`.twin` (a loaded model with a contact sensor, for the stepping kernel's contact counts),
+:mod:`.build` (the one model builder: ``ModelRecipe``, ``build``, ``servo_model``),
+:mod:`.index` (the shipped files, where the joints live), :mod:`.arm` (arm profiles).
 
 May import: ``so101sim.units`` and the base modules (and MuJoCo).
 """
 
 from .arm import load_profile
+from .build import servo_model
 from .load import (
     ArmIndex,
     arm_index,
@@ -31,4 +34,5 @@ __all__ = [
     "model_dir",
     "model_source",
     "scene_path",
+    "servo_model",
 ]
