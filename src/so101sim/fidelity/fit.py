@@ -5,7 +5,8 @@ The parameters of each joint's servo (by default ``kp_per_p``, ``torque_limit``,
 by all joints are found by robust least squares (scipy, soft-L1 loss) on the position error of
 the sim against the real arm, each episode replayed from its first measured pose as
 :func:`~so101sim.fidelity.compare.compare` does. Every evaluation replays all episodes for many
-parameter vectors at once: one :func:`mujoco.rollout.rollout` call per frame steps the whole
+parameter vectors at once: one call of the stepping kernel per frame
+(:class:`~so101sim.sim.stepping.BatchStepper`, ``mujoco.rollout``) steps the whole
 batch (the current guess and one finite-difference neighbour per parameter) on all cores.
 
 A weak prior pulls each parameter toward the starting profile (a joint that barely moved in the
@@ -33,10 +34,12 @@ from ..model.arm import (
     ArmProfile,
     ServoParams,
     apply_profile,
+    fill_delay_history,
     load_profile,
     write_servo,
 )
 from ..model.load import arm_index, arm_units, scene_path
+from ..sim.stepping import BatchStepper
 from ..units import JOINT_NAMES, ArmUnits
 from ..validation import check_count
 from .deps import need
@@ -57,6 +60,8 @@ FIT_NAMES: tuple[str, ...] = (
     "offset",
 )
 """The per-joint servo fields :func:`fit` identifies by default (and the shared ``delay_s``)."""
+
+_ADVICE = "expected servo parameters within their bounds (a replay diverged)"
 
 MAX_DELAY_S = 0.15
 """The longest command delay a fit considers, s."""
@@ -81,7 +86,7 @@ _PRIOR_SD = {"offset": 0.05, "delay_s": 0.05}  # absolute; others: relative (50 
 
 class ArmReplayer:
     """Replays recorded episodes on a batch of arms (one parameter set each), all in one
-    :func:`mujoco.rollout.rollout` call per frame.
+    :class:`~so101sim.sim.stepping.BatchStepper` call per frame.
 
     ``base``: the starting profile (its values where a batch entry does not say otherwise)."""
 
@@ -118,7 +123,6 @@ class ArmReplayer:
     def replay(self, servos: Sequence[dict[str, ServoParams]]) -> list[np.ndarray]:
         """For each batch entry (joint -> servo), the predicted measured poses (arm units) of
         every episode, concatenated: ``(nbatch, frames, 6)``."""
-        rollout = need("mujoco.rollout", "mujoco>=3.2")
         models = self._batch_models(len(servos))
         idx = self.index
         for m, joints in zip(models, servos, strict=True):
@@ -127,7 +131,7 @@ class ArmReplayer:
         offsets = np.array([[s[n].offset for n in JOINT_NAMES] for s in servos])
         datas = [mujoco.MjData(self.model) for _ in range(self.threads)]
         out = []
-        with rollout.Rollout(nthread=self.threads) as pool:
+        with BatchStepper(self.threads) as pool:
             for ep in self.episodes:
                 out.append(self._episode(pool, models, datas, ep, offsets))
         return np.concatenate(out, axis=1)
@@ -147,8 +151,6 @@ class ArmReplayer:
             d.qpos[idx.qpos] = start - offsets[b]
             d.ctrl[idx.actuator] = start
             mujoco.mj_forward(model, d)
-            from ..model.arm import fill_delay_history
-
             fill_delay_history(model, d)
             mujoco.mj_getState(model, d, states[b], spec)
         dt = m.opt.timestep
@@ -167,8 +169,7 @@ class ArmReplayer:
                 continue
             control[:, 0, :] = 0.0
             control[:, 0, idx.actuator] = cmd[k]
-            st, _ = pool.rollout(models, datas, states, control, nstep=steps)
-            states = st[:, -1, :].copy()
+            states = pool.step(models, datas, states, control, steps, _ADVICE)
         return pred
 
 
