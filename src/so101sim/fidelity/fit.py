@@ -64,6 +64,7 @@ FIT_NAMES: tuple[str, ...] = (
 _ADVICE = "expected servo parameters within their bounds (a replay diverged)"
 
 MAX_DELAY_S = 0.15
+FD_STEP = 1e-3  # finite-difference step, relative to each parameter's scale
 """The longest command delay a fit considers, s."""
 
 _BOUNDS = {
@@ -294,7 +295,7 @@ def fit(
         return cache[key]
 
     def jac(z: np.ndarray) -> np.ndarray:
-        h = 1e-3 * np.maximum(1.0, np.abs(z))
+        h = FD_STEP * np.maximum(1.0, np.abs(z))
         steps = []
         for i in range(len(z)):
             zi = z.copy()
