@@ -23,7 +23,38 @@ from ..errors import CalibrationError
 from ..units import JOINT_NAMES, ArmUnits
 from .logdata import LogError, read_small
 
-__all__ = ["lerobot_calibration_dir", "lerobot_calibration_path", "to_arm_units"]
+__all__ = [
+    "calibration_maps",
+    "from_log",
+    "lerobot_calibration_dir",
+    "lerobot_calibration_path",
+    "to_arm_units",
+    "to_log",
+]
+
+
+def calibration_maps(cal: dict[str, dict[str, float]]) -> tuple[np.ndarray, np.ndarray]:
+    """Per joint (arm order) a reading's ``scale`` and ``offset`` from a profile's
+    ``[calibration]`` (1 and 0 where it says nothing; the gripper always)."""
+    scale, offset = np.ones(len(JOINT_NAMES)), np.zeros(len(JOINT_NAMES))
+    for j, name in enumerate(JOINT_NAMES[:5]):
+        scale[j] = cal.get(name, {}).get("scale", 1.0)
+        offset[j] = cal.get(name, {}).get("offset", 0.0)
+    return scale, offset
+
+
+def from_log(values: np.ndarray, cal: dict[str, dict[str, float]]) -> np.ndarray:
+    """Readings (arm units, ``(..., 6)``) made angles with a profile's ``[calibration]`` (a
+    reading is ``scale`` × angle + ``offset``); the gripper as it is."""
+    scale, offset = calibration_maps(cal)
+    return (values - offset) / scale
+
+
+def to_log(values: np.ndarray, cal: dict[str, dict[str, float]]) -> np.ndarray:
+    """Angles (arm units) made readings: the inverse of :func:`from_log`."""
+    scale, offset = calibration_maps(cal)
+    return values * scale + offset
+
 
 TICKS_PER_TURN = 4096
 DEGREE_TICKS = 4095  # LeRobot's degrees: (ticks - middle) * 360 / 4095
@@ -74,9 +105,10 @@ def to_arm_units(
     units: ArmUnits,
     calibration: str | Path | None,
     warnings: list[str],
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, bool]:
     """Commands and measurements (``(n, 6)`` each, as recorded) in arm units (degrees, the
-    gripper 0–100), by ``mode`` (``auto``, ``degrees``, ``range``; module docstring)."""
+    gripper 0–100), by ``mode`` (``auto``, ``degrees``, ``range``; module docstring), and
+    whether the body joints' degrees are a guess (range mode mapped onto the model's ranges)."""
     body = np.abs(np.concatenate([act[:, :5], obs[:, :5]]))
     beyond = bool(body.max(initial=0.0) > 100.0 + 1e-6)
     if mode == "range" and beyond:
@@ -85,7 +117,7 @@ def to_arm_units(
             "(-100..100), or units = degrees"
         )
     if mode == "degrees" or (mode == "auto" and calibration is None and beyond):
-        return act, obs
+        return act, obs, False
     if mode == "auto" and calibration is None:
         warnings.append(
             "every body joint reads within ±100: taken as LeRobot's range mode (-100..100); "
@@ -96,7 +128,7 @@ def to_arm_units(
         act, obs = act.copy(), obs.copy()
         act[:, :5] *= scale
         obs[:, :5] *= scale
-        return act, obs
+        return act, obs, False
     lo, hi = units.limits
     span = (hi - lo)[:5] / 200.0
     mid = ((hi + lo) / 2)[:5]
@@ -109,7 +141,7 @@ def to_arm_units(
     act, obs = act.copy(), obs.copy()
     act[:, :5] = mid + act[:, :5] * span
     obs[:, :5] = mid + obs[:, :5] * span
-    return act, obs
+    return act, obs, True
 
 
 def calibration_scale(path: Path) -> np.ndarray:

@@ -189,7 +189,7 @@ def read_lerobot(
         raise LogError(f"{str(root)!r}: a negative episode or frame index; the dataset is damaged")
     ep, fr = ep.astype(np.int64), fr.astype(np.int64)
     warnings: list[str] = []
-    act, obs = to_arm_units(act, obs, mode, units, calibration, warnings)
+    act, obs, guessed = to_arm_units(act, obs, mode, units, calibration, warnings)
     chosen = choose_episodes(sorted(set(ep.tolist())), episodes, str(root))
     out = []
     for e in chosen:
@@ -213,7 +213,7 @@ def read_lerobot(
         raise LogError(f"{str(root)!r}: no episode with two frames or more among {chosen}")
     kind = "lerobot-v2.1" if str(info.get("codebase_version", "v3.0")).startswith("v2") else (
         "lerobot-v3.0")  # fmt: skip
-    return ArmLog(fps, out, str(root), kind, warnings)
+    return ArmLog(fps, out, str(root), kind, warnings, range_guess=guessed)
 
 
 def _vectors(parts: dict, name: str, order: list[int], root: Path) -> np.ndarray:

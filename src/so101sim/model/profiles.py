@@ -21,6 +21,7 @@ from ..units import JOINT_NAMES
 from ..validation import check_range
 from .servo import (
     _BOUNDS,
+    CALIBRATION_BOUNDS,
     OFFICIAL,
     PROFILE_DEFAULT,
     REQUIRED_FIELDS,
@@ -117,11 +118,11 @@ def _from_file(path: Path, seen: set[str]) -> ArmProfile:
 def _from_dict(raw: dict[str, Any], where: str, seen: set[str]) -> ArmProfile:
     top = {"name", "description", "extends", "supply_v", "measured_at_v", "scale_with_supply",
            "static_friction"}  # fmt: skip
-    unknown = set(raw) - top - {"servo", "joints", "uncertainty"}
+    unknown = set(raw) - top - {"servo", "joints", "uncertainty", "calibration"}
     if unknown:
         raise ProfileError(
             f"{where}: unknown field {sorted(unknown)[0]!r}; expected {', '.join(sorted(top))}, "
-            "[servo], [joints.<joint>] and [uncertainty]"
+            "[servo], [joints.<joint>], [uncertainty] and [calibration.<joint>]"
         )
     base: ArmProfile | None = None
     if "extends" in raw:
@@ -139,14 +140,6 @@ def _from_dict(raw: dict[str, Any], where: str, seen: set[str]) -> ArmProfile:
     joints_raw = raw.get("joints", {})
     if not isinstance(servo_raw, dict) or not isinstance(joints_raw, dict):
         raise ProfileError(f"{where}: [servo] and [joints] must be tables")
-    if base is None:  # a profile of its own must say what its servo is: nothing assumed
-        missing = [k for k in REQUIRED_FIELDS if k not in servo_raw]
-        if missing:
-            raise ProfileError(
-                f"{where}: [servo] lacks {', '.join(missing)}; expected every one of "
-                f'{", ".join(REQUIRED_FIELDS)}, or extends = "{PROFILE_DEFAULT}" to start from '
-                "a shipped profile and change only what differs"
-            )
     servo = replace(base.servo if base else ServoParams(), **_check_params(servo_raw, "servo"))
     joints = {k: dict(v) for k, v in (base.joints if base else {}).items()}
     for name, table in joints_raw.items():
@@ -173,11 +166,44 @@ def _from_dict(raw: dict[str, Any], where: str, seen: set[str]) -> ArmProfile:
     )
     uncertainty = dict(base.uncertainty) if base else {}
     uncertainty.update(_check_uncertainty(raw.get("uncertainty", {}), where))
+    if base is None:  # a profile of its own must say what its servo is: nothing assumed
+        missing = [k for k in REQUIRED_FIELDS if k not in servo_raw]
+        if missing:
+            raise ProfileError(
+                f"{where}: [servo] lacks {', '.join(missing)}; expected every one of "
+                f'{", ".join(REQUIRED_FIELDS)}, or extends = "{PROFILE_DEFAULT}" to start from '
+                "a shipped profile and change only what differs"
+            )
     return ArmProfile(
         name=name, description=desc, supply_v=supply, measured_at_v=measured,
         scale_with_supply=scale, servo=servo, joints=joints, source=where,
         uncertainty=uncertainty, static_friction=hold,
+        calibration=_check_calibration(raw.get("calibration", {}), where),
     )  # fmt: skip
+
+
+def _check_calibration(table: object, where: str) -> dict[str, dict[str, float]]:
+    if not isinstance(table, dict) or not all(isinstance(v, dict) for v in table.values()):
+        raise ProfileError(f"{where}: [calibration] must hold a table per body joint")
+    out: dict[str, dict[str, float]] = {}
+    for joint, values in table.items():
+        if joint not in JOINT_NAMES[:5]:
+            raise ProfileError(
+                f"{where}: [calibration.{joint}] names no body joint; expected one of "
+                f"{', '.join(JOINT_NAMES[:5])}"
+            )
+        for key, value in values.items():
+            if key not in CALIBRATION_BOUNDS:
+                raise ProfileError(
+                    f"{where}: calibration.{joint}.{key} is unknown; expected "
+                    f"{', '.join(CALIBRATION_BOUNDS)}"
+                )
+            low, high = CALIBRATION_BOUNDS[key]
+            out.setdefault(joint, {})[key] = check_range(
+                value, f"{where}: calibration.{joint}.{key}", low=low, high=high,
+                error=ProfileError,
+            )  # fmt: skip
+    return out
 
 
 def _check_uncertainty(table: object, where: str) -> dict[str, float]:
@@ -220,6 +246,9 @@ def profile_toml(profile: ArmProfile, *, comment: str = "") -> str:
     if profile.uncertainty:
         lines += ["", "[uncertainty]"]
         lines += [f"{k} = {float(v)!r}" for k, v in profile.uncertainty.items()]
+    for joint, values in profile.calibration.items():
+        lines += ["", f"[calibration.{joint}]"]
+        lines += [f"{k} = {float(v)!r}" for k, v in values.items()]
     return "\n".join(lines) + "\n"
 
 
@@ -236,7 +265,9 @@ def profile_key(profile: str | Path | ArmProfile | None) -> str:
 
 def _values_toml(profile: ArmProfile) -> str:
     """The profile's values as the model gets them (name, description and source aside)."""
-    return profile_toml(replace(profile, name="", description="", source="", uncertainty={}))
+    return profile_toml(
+        replace(profile, name="", description="", source="", uncertainty={}, calibration={})
+    )
 
 
 @lru_cache(maxsize=1)

@@ -65,6 +65,17 @@ NOSLIP_ITERATIONS = 10
 friction (``frictionloss``) then holds a load below it exactly, as a geared servo does, instead
 of letting the joint creep at a speed proportional to the load (MuJoCo's soft friction)."""
 
+CALIBRATION_BOUNDS: dict[str, tuple[float, float]] = {
+    "scale": (0.7, 1.3),
+    "offset": (-20.0, 20.0),
+    "scale_sd": (0.0, 1.0),
+    "offset_sd": (0.0, 40.0),
+}
+"""A ``[calibration.<joint>]`` table's fields: a range-mode recording's reading of a body joint is
+``scale`` × its angle (degrees) + ``offset`` (degrees), with their standard deviations; written
+by ``so101sim fit`` for a recording without LeRobot's calibration JSON and used by ``compare``
+and ``fit`` on such recordings. It does not change the model."""
+
 UNCERTAIN_FIELDS: tuple[str, ...] = (
     "kp_per_p",
     "torque_limit",
@@ -161,6 +172,7 @@ class ArmProfile:
     source: str = ""
     uncertainty: dict[str, float] = field(default_factory=dict)
     static_friction: bool = False
+    calibration: dict[str, dict[str, float]] = field(default_factory=dict)
 
     @property
     def supply_scale(self) -> float:
