@@ -23,7 +23,7 @@ from ..sim.simulation import Simulation
 from ..units import JOINT_NAMES
 from .calibration import from_log, to_log
 from .logs import ArmLog, Episode, read_log
-from .windows import Window, blocked_gripper, still_frames, worst_windows
+from .windows import Window, still_frames, with_stall, worst_windows
 
 __all__ = ["CompareResult", "compare", "replay_episode"]
 
@@ -167,14 +167,15 @@ def compare(
         warnings.append("each body joint's reading mapped with the profile's [calibration]")
     real, simd, cmd, traces, lags, still, used, per_ep = [], [], [], [], [], [], [], []
     for ep in data.episodes:
-        angles = Episode(ep.index, ep.times, from_log(ep.command, cal), from_log(ep.measured, cal))
+        command, blocked = with_stall(ep.command, ep.measured, ep.times)
+        angles = Episode(ep.index, ep.times, from_log(command, cal), from_log(ep.measured, cal))
         pred = to_log(replay_episode(sim, angles), cal)
         real.append(ep.measured)
         simd.append(pred)
         cmd.append(ep.command)
         still.append(still_frames(ep.command, ep.times))
         keep = np.ones(ep.measured.shape, dtype=bool)
-        keep[:, -1] = ~blocked_gripper(ep.command, ep.measured, ep.times)
+        keep[:, -1] = ~blocked
         used.append(keep)
         per_ep.append((ep.index, ep.times, np.abs(pred - ep.measured)))
         if keep_traces:

@@ -64,7 +64,7 @@ from .fitparams import (
     with_values,
 )
 from .logs import ArmLog, Episode, read_log
-from .windows import blocked_gripper
+from .windows import stall_episodes
 
 log = logging.getLogger(__name__)
 
@@ -179,16 +179,6 @@ class ArmReplayer:
         return pred * scale + shift
 
 
-def _used(eps: Sequence[Episode]) -> np.ndarray:
-    """Bool ``(frames, 6)``: the frames each joint's error counts on (not a blocked gripper)."""
-    parts = []
-    for e in eps:
-        u = np.ones(e.measured.shape, dtype=bool)
-        u[:, -1] = ~blocked_gripper(e.command, e.measured, e.times)
-        parts.append(u)
-    return np.concatenate(parts)
-
-
 def _split(eps: list[Episode], holdout: Sequence[int] | None) -> tuple[list, list]:
     if holdout is None:
         n_hold = 1 if len(eps) >= 2 else 0
@@ -265,8 +255,9 @@ def fit(
         raise SettingError("no episodes to fit; expected at least one recorded episode")
     fit_eps, held_eps = _split(eps, holdout)
     with_cal = guessed if fit_calibration is None else fit_calibration
-    rep = ArmReplayer(fit_eps, start, model_path=model, threads=threads)
-    real, used = np.concatenate([e.measured for e in fit_eps]), _used(fit_eps)
+    replayed, used = stall_episodes(fit_eps)
+    rep = ArmReplayer(replayed, start, model_path=model, threads=threads)
+    real = np.concatenate([e.measured for e in fit_eps])
 
     servo_names = [n for n in names if not (with_cal and n == "offset")]
     keys: list[tuple[str, str]] = [(j, n) for j in joints for n in servo_names]
@@ -380,10 +371,11 @@ def _heldout(held_eps, best, start, model, threads, run) -> tuple:
     the bare commands' errors, and the frames of a blocked gripper (Nones when none)."""
     if not held_eps:
         return None, None, None, None, 0
-    hreal, hused = np.concatenate([e.measured for e in held_eps]), _used(held_eps)
-    hp = run(ArmReplayer(held_eps, start, model_path=model, threads=threads), [best, start])
+    hreal = np.concatenate([e.measured for e in held_eps])
+    replayed, hused = stall_episodes(held_eps)
+    hp = run(ArmReplayer(replayed, start, model_path=model, threads=threads), [best, start])
     default = load_profile(PROFILE_DEFAULT)
-    dp = run(ArmReplayer(held_eps, default, model_path=model, threads=threads), [default])[0]
+    dp = run(ArmReplayer(replayed, default, model_path=model, threads=threads), [default])[0]
     hcmd = np.concatenate([e.command for e in held_eps])
     return (mae(hp[0], hreal, hused), mae(hp[1], hreal, hused), mae(dp, hreal, hused),
             mae(hcmd, hreal, hused), int((~hused[:, -1]).sum()))  # fmt: skip

@@ -1,7 +1,8 @@
 """Where a replay is wrong, at a glance: which frames hold still and which move (by the
 command), the worst windows of error and their times, and the frames where the real gripper
-is blocked on an object (it stalls short of its command; the sim has no object, so those frames
-are left out of the gripper's error)."""
+is blocked on an object (it stalls short of its command). The sim has no object: in those
+frames its gripper is commanded to where the real one stalled (:func:`with_stall`, so that both
+leave the object from the same opening), and the frames are left out of the gripper's error."""
 
 from __future__ import annotations
 
@@ -9,12 +10,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .logdata import Episode
+
 __all__ = [
     "BLOCKED_GAP",
     "STILL_SPEED",
     "Window",
     "blocked_gripper",
+    "stall_episodes",
     "still_frames",
+    "with_stall",
     "worst_windows",
 ]
 
@@ -63,6 +68,31 @@ def blocked_gripper(command: np.ndarray, measured: np.ndarray, times: np.ndarray
                 out[start:k] = True
             start = None
     return out
+
+
+def with_stall(command: np.ndarray, measured: np.ndarray, times: np.ndarray):
+    """``(command, blocked)``: the commands with the gripper's replaced, where the real gripper
+    is blocked, by where it stalled; and the blocked frames (bool ``(n,)``)."""
+    blocked = blocked_gripper(command, measured, times)
+    if not blocked.any():
+        return command, blocked
+    out = command.copy()
+    out[blocked, GRIPPER] = measured[blocked, GRIPPER]
+    return out, blocked
+
+
+def stall_episodes(episodes: list[Episode]) -> tuple[list[Episode], np.ndarray]:
+    """The episodes as replayed (a blocked gripper commanded to where it stalled,
+    :func:`with_stall`) and, over all their frames, where each joint's error counts (bool
+    ``(frames, 6)``: not a blocked gripper)."""
+    out, used = [], []
+    for e in episodes:
+        command, blocked = with_stall(e.command, e.measured, e.times)
+        out.append(Episode(e.index, e.times, command, e.measured))
+        u = np.ones(e.measured.shape, dtype=bool)
+        u[:, GRIPPER] = ~blocked
+        used.append(u)
+    return out, np.concatenate(used)
 
 
 @dataclass(frozen=True)
