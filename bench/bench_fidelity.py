@@ -114,13 +114,13 @@ def main() -> None:
     print(f"{len(chosen)} {split} runs of {len(runs)} in {args.path}")
 
     arms: list = list(args.arm or ["official", "sts3215"])
-    if args.arm is None:  # old and new side by side: the shipped fit with MuJoCo's soft friction
+    if args.arm is None:  # side by side: the shipped fit with friction that holds (noslip)
         from dataclasses import replace
 
         from so101sim.model.arm import load_profile
 
-        soft = replace(load_profile("sts3215"), name="sts3215-soft", static_friction=False)
-        arms.insert(1, soft)
+        held = replace(load_profile("sts3215"), name="sts3215-hold", static_friction=True)
+        arms.insert(2, held)
     if args.fit is not None:
         arms.append(fit_profile(fit, args.fit, args.iterations, args.spread))
     columns: dict[str, dict[str, float]] = {}

@@ -30,7 +30,7 @@ def test_fit_recovers_the_hidden_arm_and_predicts_held_out_motion(episodes):
         arm="sts3215",
         names=("kp_per_p", "damping"),
         joints=("shoulder_lift", "elbow_flex", "wrist_flex"),
-        max_evaluations=40,  # hard Coulomb friction (static_friction) converges slower
+        max_evaluations=20,
     )
     true = true_arm()
     assert res.fit_episodes == [0, 1] and res.heldout_episodes == [2]

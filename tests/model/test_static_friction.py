@@ -18,6 +18,11 @@ from so101sim.sim.simulation import Simulation
 HORIZONTAL = np.pi / 2  # the bench's pendulum hangs at 0
 
 
+def _held():
+    """The shipped servo with friction that holds (``static_friction = true``)."""
+    return replace(load_profile("sts3215"), static_friction=True)
+
+
 def _let_go(profile, mass: float, seconds: float = 10.0) -> np.ndarray:
     """The pendulum of ``mass`` kg at 0.10 m, started still and horizontal, the servo's torque
     off (only the gear train's friction holds it): its angle every 5 ms of simulated time."""
@@ -29,13 +34,12 @@ def _let_go(profile, mass: float, seconds: float = 10.0) -> np.ndarray:
 
 def _load(mass: float) -> float:
     """The gravity torque (N·m) of the bench pendulum held horizontal (its arm's own mass too)."""
-    bench = ServoBench(mass, 0.10, 16, "sts3215")
+    bench = ServoBench(mass, 0.10, 16, _held())
     return float((mass * 0.10 + bench.rig.arm_mass * 0.05) * 9.81)
 
 
 def test_a_load_below_the_static_friction_does_not_move_the_joint_over_10_s():
-    prof = load_profile("sts3215")
-    assert prof.static_friction
+    prof = _held()
     friction = prof.servo.frictionloss  # the mechanical friction: the servo is off
     assert _load(0.02) < 0.8 * friction
     q = _let_go(prof, 0.02)
@@ -43,7 +47,7 @@ def test_a_load_below_the_static_friction_does_not_move_the_joint_over_10_s():
 
 
 def test_a_load_above_the_static_friction_moves_the_joint():
-    prof = load_profile("sts3215")
+    prof = _held()
     assert _load(0.3) > 2 * prof.servo.frictionloss
     q = _let_go(prof, 0.3, seconds=2.0)
     assert HORIZONTAL - q.min() > 0.5  # it falls
@@ -71,13 +75,15 @@ def test_the_arm_holds_a_pose_without_creeping():
     assert drift[False] > 10 * max(drift[True], 0.01)
 
 
-def test_static_friction_is_in_the_model_and_its_cache_key():
-    assert load_model(arm="sts3215").opt.noslip_iterations > 0
+def test_static_friction_is_in_the_model_and_its_cache_key(tmp_path):
+    path = tmp_path / "held.toml"
+    path.write_text('extends = "sts3215"\nstatic_friction = true\n')
+    assert load_model(arm=path).opt.noslip_iterations > 0
+    assert load_model(arm="sts3215").opt.noslip_iterations == 0  # shipped soft (docs)
     assert load_model(arm="official").opt.noslip_iterations == 0
-    soft = replace(load_profile("sts3215"), static_friction=False)
-    assert profile_key(soft) != profile_key("sts3215")
-    back = profile_from_toml(profile_toml(load_profile("sts3215")))
-    assert back.static_friction and profile_key(back) == profile_key("sts3215")
+    assert profile_key(path) != profile_key("sts3215")
+    back = profile_from_toml(profile_toml(load_profile(path)))
+    assert back.static_friction and profile_key(back) == profile_key(path)
 
 
 @pytest.mark.parametrize(
