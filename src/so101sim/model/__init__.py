@@ -3,7 +3,10 @@
 May import: ``so101sim.errors``, ``so101sim.validation``, ``so101sim.units`` (and MuJoCo).
 Modules: :mod:`.load` (``load_model``, ``scene_path``, the arm's units and indices),
 :mod:`.cache` (compiled models kept between runs), :mod:`.trim` (the physics-only model),
-:mod:`.twin` (a loaded model with a contact sensor, for the stepping kernel's contact counts).
+:mod:`.twin` (a loaded model with a contact sensor, for the stepping kernel's contact counts);
+the arm profiles (:mod:`.arm`, their public names, over :mod:`.servo` (the data),
+:mod:`.profiles` (TOML in and out), :mod:`.apply` (applied to an ``MjSpec`` at load),
+:mod:`.runtime` (writes into a compiled model) and :mod:`.draw` (draws from their uncertainty)).
 """
 
 from .load import (
