@@ -162,3 +162,22 @@ def test_a_csv_log_with_an_overlong_line_is_refused(tmp_path, capsys):
     path.write_text("\n".join([header, row, "0.1,hold," + "1" * 1_000_000, row]) + "\n")
     err = _one_error(capsys, ["compare", str(path)])
     assert "line 3 is longer than" in err
+
+
+def test_data_changed_since_lerobot_wrote_its_stats_are_refused(ds, tmp_path, capsys):
+    table = pq.read_table(ds.joinpath(*FILE))
+    state = np.array(table.column("observation.state").to_pylist())
+    stats = {"observation.state": {"min": state.min(0).tolist(), "max": state.max(0).tolist(),
+             "mean": state.mean(0).tolist(), "std": state.std(0).tolist(),
+             "count": [len(state)]}}  # fmt: skip
+    (ds / "meta" / "stats.json").write_text(json.dumps(stats))
+    assert main(["compare", str(ds), "--units", "degrees", "--json"]) == 0  # as recorded
+    capsys.readouterr()
+
+    def moved(t):
+        rows = t.column("observation.state").to_pylist()
+        rows[20][1] += 4.0  # a flipped bit in one float32: a plausible value, moved
+        return _set(t, "observation.state", pa.array(rows, type=pa.list_(pa.float32())))
+
+    _rewrite(ds, moved)
+    assert "disagrees with meta/stats.json" in _both(capsys, ds, tmp_path)[0]

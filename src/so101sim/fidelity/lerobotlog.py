@@ -175,10 +175,11 @@ def read_lerobot(
             f"{str(root)!r} is damaged or incomplete: its parquet files hold {total} frames, "
             f"meta/info.json says total_frames = {declared}"
         )
-    act, obs = (
+    act, obs = (  # the shapes first (a short vector is named as such), then the stats
         _vectors(parts, "action", order_a, root),
         _vectors(parts, "observation.state", order_s, root),
     )
+    _check_stats(root, parts, total)
     ep = np.concatenate(parts["episode_index"])
     fr = np.concatenate(parts["frame_index"])
     ts = np.concatenate(parts["timestamp"]) if "timestamp" in parts else fr / fps
@@ -214,6 +215,44 @@ def read_lerobot(
     kind = "lerobot-v2.1" if str(info.get("codebase_version", "v3.0")).startswith("v2") else (
         "lerobot-v3.0")  # fmt: skip
     return ArmLog(fps, out, str(root), kind, warnings, range_guess=guessed)
+
+
+def _check_stats(root: Path, parts: dict, total: int) -> None:
+    """The data against ``meta/stats.json`` (LeRobot's per-feature count, min, max and mean,
+    computed when it was recorded), where the stats cover the same frames: a flipped byte that
+    moves a value shows there (LeRobot's files carry no page checksums)."""
+    path = root / "meta" / "stats.json"
+    if not path.exists():
+        return
+    try:
+        stats = json.loads(read_small(path, "meta/stats.json"))
+    except ValueError as exc:
+        raise LogError(f"{str(path)!r} cannot be read: {exc}") from exc
+    if not isinstance(stats, dict):
+        raise LogError(f"{str(path)!r} is not a LeRobot stats.json (an object per feature)")
+    for name in (*COLUMNS, "timestamp"):
+        st = stats.get(name)
+        if name not in parts or not isinstance(st, dict):
+            continue
+        try:
+            count = float(np.ravel(st["count"])[0])
+            want = {k: np.asarray(st[k], dtype=float).ravel() for k in ("min", "max", "mean")}
+            spread = np.asarray(st.get("std", 0.0), dtype=float).ravel()
+        except (KeyError, TypeError, ValueError, IndexError):
+            continue  # not the stats this check reads: nothing to hold the data against
+        v = np.concatenate(parts[name]).reshape(total, -1)
+        if count != total or any(w.shape != (v.shape[1],) for w in want.values()):
+            continue  # the stats describe other frames (an edited dataset): no comparison
+        got = {"min": v.min(axis=0), "max": v.max(axis=0), "mean": v.mean(axis=0)}
+        for k, w in want.items():
+            tol = 1e-5 * (np.abs(w) + np.resize(spread, w.shape) + 1.0)
+            bad = np.abs(got[k] - w) > tol
+            if bad.any():
+                i = int(np.argmax(bad))
+                raise LogError(
+                    f"{str(root)!r} is damaged: its {name} disagrees with meta/stats.json "
+                    f"({k} {got[k][i]:.6g} against {w[i]:.6g}): changed since it was recorded"
+                )
 
 
 def _vectors(parts: dict, name: str, order: list[int], root: Path) -> np.ndarray:
