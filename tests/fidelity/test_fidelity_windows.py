@@ -118,3 +118,16 @@ def test_fit_holds_out_the_episodes_it_is_told(tmp_path, capsys):
     assert "default" in text and "commands" in text
     assert code in (0, 1)  # 1: refused as worse than the default (then nothing written)
     assert out.exists() == (code == 0)
+
+
+def test_fit_refuses_a_profile_worse_than_the_default_on_held_out_episodes(tmp_path, capsys):
+    eps = record(load_profile("sts3215"), [1, 2], seconds=1.5)  # the default is the truth
+    root = write_lerobot(tmp_path / "ds", eps)
+    out = tmp_path / "a.toml"
+    argv = ["fit", str(root), "-o", str(out), "--units", "degrees", "--arm", "official",
+            "--iterations", "1", "--holdout", "1"]  # fmt: skip
+    assert main(argv) == 1  # one step from the vendored actuator: far from the real servo
+    _, err = capsys.readouterr()
+    assert "REFUSED" in err and "WORSE than the default" in err and not out.exists()
+    assert main([*argv, "--force"]) == 0
+    assert out.exists() and "worse than the default" in capsys.readouterr().err
