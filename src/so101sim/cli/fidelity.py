@@ -58,6 +58,12 @@ def add_parsers(sub: SubParsers) -> None:
     p.add_argument(
         "--iterations", type=int, default=30, help="solver evaluations at most (default 30)"
     )
+    p.add_argument(
+        "--calibration-only",
+        action="store_true",
+        help="keep --arm's servos and delay; fit only each body joint's calibration (scale and "
+        "offset) of a range-mode recording without LeRobot's calibration JSON",
+    )
     p.add_argument("--threads", type=int, help="threads for the rollouts (default: the cores)")
     p.add_argument(
         "--force",
@@ -183,6 +189,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
         units=args.units,
         holdout=holdout,
         robot_id=args.robot_id,
+        **_only_calibration(args.calibration_only),
         max_evaluations=args.iterations,
         threads=args.threads,
         model=args.model,
@@ -225,6 +232,14 @@ def cmd_fit(args: argparse.Namespace) -> int:
     write_atomically(out, lambda p: p.write_text(text, encoding="utf-8"), "profile")
     print(f"wrote {out} (use it with --arm {out})")
     return 0
+
+
+def _only_calibration(only: bool) -> dict:
+    """fit()'s settings for --calibration-only: no servo field, no delay, the calibration."""
+    if not only:
+        return {}
+    body = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
+    return {"names": (), "joints": body, "fit_delay": False}  # calibration: when not given
 
 
 def _heldout_table(result) -> None:

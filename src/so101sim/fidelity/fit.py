@@ -265,6 +265,11 @@ def fit(
         keys += [(j, n) for j in joints if j in JOINT_NAMES[:5] for n in CALIBRATION_NAMES]
     if fit_delay:
         keys.append(("*", "delay_s"))
+    if not keys:
+        raise SettingError(
+            "nothing to fit: no servo field, no delay, and the recording's calibration is given "
+            "(a calibration JSON or degrees); expected something to fit"
+        )
     x0 = np.array([get_value(start, j, n) for j, n in keys])
     scale = np.array([max(abs(v), TYPICAL[n]) for v, (_, n) in zip(x0, keys, strict=True)])
     lo = np.array([BOUNDS[n][0] for _, n in keys]) / scale
@@ -349,7 +354,7 @@ def fit(
             description=f"{start.name} fitted to recorded motion by so101sim fit "
             f"({len(fit_eps)} episode(s))",
             source="",
-            uncertainty=spread(stderr),
+            uncertainty=spread(stderr) or dict(start.uncertainty),  # none fitted: the start's
         ),
         values=values,
         stderr=stderr,
