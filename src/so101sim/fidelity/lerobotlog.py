@@ -183,19 +183,24 @@ def read_lerobot(
     ep = np.concatenate(parts["episode_index"])
     fr = np.concatenate(parts["frame_index"])
     ts = np.concatenate(parts["timestamp"]) if "timestamp" in parts else fr / fps
-    for name, v in (("episode_index", ep), ("frame_index", fr), ("timestamp", ts)):
-        if not np.isfinite(v).all() or (name != "timestamp" and (v != np.round(v)).any()):
+    if not np.isfinite(ts).all():
+        raise LogError(f"{str(root)!r}: a timestamp is not a finite number; expected seconds")
+    for name, v in (("episode_index", ep), ("frame_index", fr)):
+        if not np.isfinite(v).all() or (v != np.round(v)).any():
             raise LogError(f"{str(root)!r}: {name} holds a value that is not a whole number")
     if ep.min() < 0 or fr.min() < 0:
         raise LogError(f"{str(root)!r}: a negative episode or frame index; the dataset is damaged")
     ep, fr = ep.astype(np.int64), fr.astype(np.int64)
     warnings: list[str] = []
     act, obs, guessed = to_arm_units(act, obs, mode, units, calibration, warnings)
-    chosen = choose_episodes(sorted(set(ep.tolist())), episodes, str(root))
+    order = np.lexsort((fr, ep))  # by episode, then frame: each episode one slice
+    found, first = np.unique(ep[order], return_index=True)
+    bounds = dict(zip(found.tolist(), zip(first, [*first[1:], len(order)], strict=True),
+                      strict=True))  # fmt: skip
+    chosen = choose_episodes(found.tolist(), episodes, str(root))
     out = []
     for e in chosen:
-        sel = np.flatnonzero(ep == e)
-        sel = sel[np.argsort(fr[sel], kind="stable")]
+        sel = order[bounds[e][0] : bounds[e][1]]
         if not np.array_equal(fr[sel], np.arange(len(sel))):
             raise LogError(
                 f"{str(root)!r}: episode {e}'s frame_index is not 0, 1, 2, ... (a frame "
