@@ -471,10 +471,13 @@ class BatchStepper:
         with mujoco_call():  # refused once the interpreter exits (exitgate)
             st, _ = self._pool.rollout(models, datas, states, control, nstep=nstep)
         out = st[:, -1, :].copy()
-        if not np.isfinite(out).all():
-            bad = int(np.flatnonzero(~np.isfinite(out).all(axis=1))[0])
+        dt = np.array([m.opt.timestep for m in models])
+        reset = out[:, 0] < states[:, 0] + (nstep - 0.5) * dt  # MuJoCo reset a bad state
+        bad = ~np.isfinite(out).all(axis=1) | reset
+        if bad.any():
             raise SimulationDivergedError(
-                f"the simulation of batch entry {bad} diverged (a state is not finite). {advice}"
+                f"the simulation of batch entry {int(np.argmax(bad))} diverged (its state not "
+                f"finite, or reset by MuJoCo). {advice}"
             )
         return out
 
