@@ -13,7 +13,7 @@ from so101sim.errors import SettingError
 from so101sim.lab import gradefolder, gradelog
 from so101sim.lab.grade import LabSpec, Tolerances, check_video, find_moves, grade_log
 from so101sim.lab.gradefolder import grade_folder
-from so101sim.lab.gradelog import NotASo101SimLogError, read_run_log
+from so101sim.lab.gradelog import NUMBER_COLUMNS, NotASo101SimLogError, read_run_log
 from so101sim.lab.gradereport import format_folder, format_grade, summary_columns, write_summary
 from so101sim.recording.csvlog import csv_columns
 
@@ -102,15 +102,24 @@ def test_moves_are_found_from_the_commands_not_from_a_jump_at_the_hold():
     assert [(round(t[a], 3), round(t[b], 3)) for a, b in rows] == [(0.002, 2.0), (4.0, 6.0)]
 
 
+def _without_servo_column(text: str) -> str:
+    """The log as written before it had a servo_model column."""
+    rows = list(csv.reader(text.splitlines()))
+    keep = [k for k, name in enumerate(rows[0]) if name != "servo_model"]
+    return "".join(",".join(row[k] for k in keep) + "\n" for row in rows)
+
+
 def test_the_report_names_the_log_the_phases_and_the_servo_model(logs, tmp_path):
+    plain = tmp_path / "plain.csv"
+    plain.write_text(_without_servo_column(logs["lab"].read_text()))
+    assert "servo model: not named in the log" in format_grade(grade_log(plain))
     named = tmp_path / "named.csv"
-    named.write_text("# arm: sts3215 (fitted STS3215 servos)\n" + logs["lab"].read_text())
+    named.write_text("# so101sim log, arm: sts3215 (fitted STS3215 servos)\n" + plain.read_text())
     result = grade_log(named)
     assert result.servo_model == "sts3215 (fitted STS3215 servos)" and result.passed
     text = format_grade(result)
     assert str(named) in text and "servo model: sts3215" in text
     assert text.splitlines()[-1] == "PASS"
-    assert "servo model: not named in the log" in format_grade(grade_log(logs["lab"]))
 
 
 # ---------------------------------------------------------------------------- damaged logs
@@ -119,7 +128,8 @@ def _header() -> str:
 
 
 def _row(t: float = 0.002, value: str = "0") -> str:
-    return ",".join([f"{t:.4f}", "to_zero", *[value] * 12])
+    fields = {c: value for c in csv_columns()} | {"time": f"{t:.4f}", "phase": "to_zero"}
+    return ",".join(fields[c] if c != "servo_model" else "sts3215" for c in csv_columns())
 
 
 @pytest.mark.parametrize(
@@ -129,7 +139,8 @@ def _row(t: float = 0.002, value: str = "0") -> str:
         ("# only a comment\n", "is empty"),
         ("a,b,c\n1,2,3\n", "not the header of a so101sim log"),
         (_header() + "\n", "holds the header but no rows"),
-        (_header() + "\n" + _row() + "\n0.004,hold,1,2\n", "line 3 has 4 fields; expected 14"),
+        (_header() + "\n" + _row() + "\n0.004,hold,1,2\n", "line 3 has 4 fields; expected"),
+        (_header().replace("elbow_flex_measured", "elbow"), "no elbow_flex_measured column"),
         (_header() + "\n" + _row(value="nan") + "\n", "is not finite"),
         (_header() + "\n" + _row(value="inf") + "\n", "is not finite"),
         (_header() + "\n" + _row(value="abc") + "\n", "is not a number"),
@@ -142,6 +153,25 @@ def test_a_damaged_log_is_one_clear_error(tmp_path, text, said):
     with pytest.raises(NotASo101SimLogError, match=said) as info:
         grade_log(path)
     assert "\n" not in str(info.value) and str(path) in str(info.value)
+
+
+def test_columns_are_taken_by_name_and_the_servo_model_column_is_read(tmp_path, logs):
+    assert set(NUMBER_COLUMNS) | {"phase"} <= set(csv_columns())  # what run --log writes
+    lines = logs["lab"].read_text().splitlines()
+    header = [c for c in lines[0].split(",") if c != "servo_model"]
+    order = [*header[::-1], "servo_model", "note"]  # any order, another column
+    old = lines[0].split(",")
+    text = ",".join(order) + "\n"
+    for line in lines[1:]:
+        row = dict(zip(old, line.split(","), strict=True)) | {"servo_model": "sts3215"}
+        text += ",".join(row.get(c, "x") for c in order) + "\n"
+    path = tmp_path / "shuffled.csv"
+    path.write_text(text)
+    result = grade_log(path)
+    assert result.passed and result.servo_model == "sts3215"
+    assert result.phase("to_zero").check("reached").value == pytest.approx(
+        grade_log(logs["lab"]).phase("to_zero").check("reached").value
+    )
 
 
 def test_binary_missing_and_oversized_logs_are_refused(tmp_path, logs, monkeypatch):

@@ -5,7 +5,8 @@ row before anything is judged.
 :func:`read_run_log` returns a :class:`RunLog` (times, commanded and measured angles in the
 arm's units) or raises :class:`NotASo101SimLogError` with one line saying what is wrong and
 where (the header, a line number, a value). Comment lines (starting with ``#``) are allowed
-anywhere; one naming the servo model (``# arm: sts3215``, ``# servo model: ...``) is kept.
+anywhere. Columns are taken by name: the log's ``servo_model`` column, or a comment naming
+the servo model (``# arm: sts3215``, ``# servo model: ...``), says which servo model ran.
 Everything is bounded: the file's size (:data:`MAX_LOG_BYTES`) and its rows
 (:data:`MAX_LOG_ROWS`), checked before the rows are read.
 """
@@ -22,7 +23,6 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import So101SimError
-from ..recording.csvlog import csv_columns
 from ..units import JOINT_NAMES
 from ..validation import check_input_file
 
@@ -33,7 +33,7 @@ MAX_LOG_ROWS = 500_000
 """The most rows read from one log (1000 s of simulated time at the shipped 2 ms step)."""
 
 _SERVO_COMMENT = re.compile(
-    r"^#\s*(?:arm|servo[ _-]?model|servos?|actuators?|actuator[ _-]?model)\s*[:=]\s*(.+?)\s*$",
+    r"\b(?:arm|servo[ _-]?model|servos?|actuators?|actuator[ _-]?model)\s*[:=]\s*(.+?)\s*$",
     re.IGNORECASE,
 )
 _LOG_WHAT = "a so101sim CSV log (so101sim run --log, so101sim record ... --log)"
@@ -107,25 +107,47 @@ def _read_text(path: Path) -> str:
 
 def _servo_model(comments: list[str]) -> str | None:
     for line in comments:
-        m = _SERVO_COMMENT.match(line)
+        m = _SERVO_COMMENT.search(line)
         if m:
             return m.group(1)[:200]
     return None
 
 
-def _row_values(path: Path, number: int, fields: list[str], names: list[str]) -> list[float]:
+NUMBER_COLUMNS: tuple[str, ...] = (
+    "time",
+    *(f"{n}_commanded" for n in JOINT_NAMES),
+    *(f"{n}_measured" for n in JOINT_NAMES),
+)
+"""The columns a so101sim log must hold, read as numbers (with ``phase``; a ``servo_model``
+column, and any other, is allowed: columns are taken by name)."""
+SERVO_COLUMN = "servo_model"
+
+
+def _check_header(path: Path, number: int, fields: list[str]) -> list[int]:
+    """Where each of NUMBER_COLUMNS is in the header, or the error of a foreign header."""
+    missing = [c for c in ("phase", *NUMBER_COLUMNS) if c not in fields]
+    if missing or len(set(fields)) != len(fields):
+        shown = ",".join(fields)[:80]
+        why = f"no {missing[0]} column" if missing else "a column named twice"
+        raise _fail(
+            path,
+            f"line {number} is {shown!r}, not the header of a so101sim log ({why}); expected "
+            f"time,phase,shoulder_pan_commanded,... as in {_LOG_WHAT}",
+        )
+    return [fields.index(c) for c in NUMBER_COLUMNS]
+
+
+def _row_values(path: Path, number: int, fields: list[str], where: list[int]) -> list[float]:
     """The 13 numbers of a row (time, 6 commanded, 6 measured), each checked finite."""
     values = []
-    for name, text in zip(names, fields, strict=True):
-        if name == "phase":
-            continue
+    for name, k in zip(NUMBER_COLUMNS, where, strict=True):
+        text = fields[k]
         try:
             v = float(text)
         except ValueError:
             raise _fail(
                 path,
-                f"line {number}: {name} = {text[:40]!r} is not a number; expected a number "
-                "in every column but phase",
+                f"line {number}: {name} = {text[:40]!r} is not a number; expected a number",
             ) from None
         if not math.isfinite(v):
             raise _fail(
@@ -146,32 +168,28 @@ def read_run_log(path: str | os.PathLike[str]) -> RunLog:
     """
     p = check_input_file(path, "log", expected=_LOG_WHAT)
     lines = _read_text(p).splitlines()
-    names = csv_columns()
     comments: list[str] = []
-    header_seen = False
+    header: list[str] | None = None
+    where: list[int] = []
     times: list[float] = []
     phases: list[str] = []
+    servos: dict[str, None] = {}  # the servo models named, in order
     numbers: list[list[float]] = []
     for number, fields in _records(lines, comments):
-        if not header_seen:
-            if fields != names:
-                shown = ",".join(fields)[:80]
-                raise _fail(
-                    p,
-                    f"line {number} is {shown!r}, not the header of a so101sim log; expected "
-                    f"{','.join(names[:3])},... ({len(names)} columns) as in {_LOG_WHAT}",
-                )
-            header_seen = True
+        if header is None:
+            where, header = _check_header(p, number, fields), fields
+            phase_at = header.index("phase")
+            servo_at = header.index(SERVO_COLUMN) if SERVO_COLUMN in header else None
             continue
-        if len(fields) != len(names):
+        if len(fields) != len(header):
             raise _fail(
                 p,
-                f"line {number} has {len(fields)} fields; expected {len(names)} (time, phase, "
-                "6 commanded, 6 measured): the log is damaged or cut",
+                f"line {number} has {len(fields)} fields; expected {len(header)}, as the "
+                "header: the log is damaged or cut",
             )
         if len(times) >= MAX_LOG_ROWS:
             raise _fail(p, f"has more than {MAX_LOG_ROWS} rows; expected at most {MAX_LOG_ROWS}")
-        values = _row_values(p, number, fields, names)
+        values = _row_values(p, number, fields, where)
         if times and values[0] <= times[-1]:
             raise _fail(
                 p,
@@ -179,22 +197,19 @@ def read_run_log(path: str | os.PathLike[str]) -> RunLog:
                 "that increase row by row",
             )
         times.append(values[0])
-        phases.append(fields[1])
+        phases.append(fields[phase_at])
+        if servo_at is not None and len(servos) < 8:
+            servos[fields[servo_at][:100]] = None
         numbers.append(values[1:])
-    if not header_seen:
+    if header is None:
         raise _fail(p, f"is empty (no header, no rows); expected {_LOG_WHAT}")
     if not times:
         raise _fail(p, "holds the header but no rows; expected the rows of a run")
     values = np.asarray(numbers, dtype=float)
     n = len(JOINT_NAMES)
+    servo = ", ".join(servos) if servos else _servo_model(comments)
     return RunLog(
-        p,
-        np.asarray(times),
-        tuple(phases),
-        values[:, :n],
-        values[:, n:],
-        tuple(comments),
-        _servo_model(comments),
+        p, np.asarray(times), tuple(phases), values[:, :n], values[:, n:], tuple(comments), servo
     )
 
 
@@ -211,4 +226,11 @@ def _records(lines: list[str], comments: list[str]):
         yield number, next(csv.reader([line]))
 
 
-__all__ = ["MAX_LOG_BYTES", "MAX_LOG_ROWS", "NotASo101SimLogError", "RunLog", "read_run_log"]
+__all__ = [
+    "MAX_LOG_BYTES",
+    "MAX_LOG_ROWS",
+    "NUMBER_COLUMNS",
+    "NotASo101SimLogError",
+    "RunLog",
+    "read_run_log",
+]

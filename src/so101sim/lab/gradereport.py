@@ -28,8 +28,8 @@ def _spec_line(result: GradeResult) -> str:
     s, tol = result.spec, result.tolerances
     return (
         f"spec: rest -> all zeros in {s.move_s:g} s, hold {s.hold_s:g} s, back to the start "
-        f"in {s.return_s:g} s; tolerances {tol.angle_deg:g}° (body joints; the gripper is not "
-        f"judged) and {tol.time_s:g} s"
+        f"in {s.return_s:g} s\ntolerances: {tol.angle_deg:g}° per body joint (the gripper is "
+        f"not judged), {tol.time_s:g} s per phase"
     )
 
 
