@@ -209,6 +209,16 @@ def test_the_video_is_checked_for_opening_and_length(tmp_path, logs):
     assert not missing.passed and "does not exist" in missing.text
 
 
+def test_a_video_too_large_is_not_read(tmp_path, monkeypatch):
+    from so101sim.lab import grade
+
+    video = make_video(tmp_path / "good.mp4", 181)
+    monkeypatch.setattr(grade, "MAX_VIDEO_BYTES", 100)
+    result = check_video(video, 6.0, Tolerances())
+    assert not result.passed and "expected a video of at most" in result.text
+    assert result.frames is None  # never opened
+
+
 # ---------------------------------------------------------------------------- folders
 @pytest.fixture
 def handins(tmp_path, logs):

@@ -38,6 +38,8 @@ from ..validation import check_range
 from .gradelog import RunLog, read_run_log
 
 PHASES = ("to_zero", "hold", "return")
+MAX_VIDEO_BYTES = 2 * 2**30
+"""The largest video checked (2 GiB; the lab's 6 s at 640x480 is well under 1 MiB)."""
 
 
 @dataclass(frozen=True)
@@ -332,6 +334,12 @@ def check_video(path: str | os.PathLike[str], duration: float, tol: Tolerances) 
     p = Path(path)
     if not p.is_file():
         return VideoResult(p, False, f"{p.name} does not exist (or is not a file)")
+    size = p.stat().st_size
+    if size > MAX_VIDEO_BYTES:
+        return VideoResult(
+            p, False, f"{p.name} is {size / 2**30:.1f} GiB; expected a video of at most "
+            f"{MAX_VIDEO_BYTES // 2**30} GiB",
+        )  # fmt: skip
     import imageio.v2 as imageio  # imported here: only a video needs it
 
     try:

@@ -66,7 +66,11 @@ def _entries(folder: Path) -> list[tuple[str, str, Path | None, str]]:
         if entry.is_file() and entry.suffix.lower() == ".csv":
             out.append((entry.stem, "file", entry, ""))
         elif entry.is_dir():
-            logs = sorted(p for p in entry.glob("*.csv") if p.is_file())
+            logs = sorted(
+                p
+                for p in entry.iterdir()
+                if p.suffix.lower() == ".csv" and not p.name.startswith(".") and p.is_file()
+            )
             error = ""
             if not logs:
                 error = f"no CSV log in {name}/; expected one (the student's log)"
