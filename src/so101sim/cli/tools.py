@@ -283,9 +283,13 @@ def cmd_grade(args: argparse.Namespace) -> int:
     from ..lab.grade import Tolerances, grade_log
     from ..lab.gradefolder import grade_folder
     from ..lab.gradereport import check_summary_path, format_folder, format_grade, write_summary
+    from ..validation import checked_path
 
     tolerances = Tolerances(args.tolerance_deg, args.time_tolerance_s)
-    if not Path(args.handin).is_dir():
+    handin = checked_path(args.handin, "hand-in")  # empty, too long: one line before anything
+    if args.video is not None:
+        checked_path(args.video, "video")
+    if not handin.is_dir():
         if args.summary is not None:
             raise SettingError(
                 "--summary writes one row per student of a folder of hand-ins; expected a "

@@ -332,9 +332,12 @@ def check_video(path: str | os.PathLike[str], duration: float, tol: Tolerances) 
     ``duration`` simulated seconds within ``tol.time_s``: so101sim's videos hold one frame at
     the start and one every 1/fps s, so their length is (frames - 1) / fps."""
     p = Path(path)
-    if not p.is_file():
+    try:
+        size = p.stat().st_size if p.is_file() else None
+    except OSError as exc:  # a name too long, a folder that cannot be read
+        return VideoResult(p, False, f"{p.name[:40]} cannot be read ({exc.strerror})")
+    if size is None:
         return VideoResult(p, False, f"{p.name} does not exist (or is not a file)")
-    size = p.stat().st_size
     if size > MAX_VIDEO_BYTES:
         return VideoResult(
             p, False, f"{p.name} is {size / 2**30:.1f} GiB; expected a video of at most "

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import SettingError, So101SimError
-from ..validation import check_count
+from ..validation import check_count, checked_path
 from .grade import GradeResult, LabSpec, Tolerances, grade_log
 
 VIDEO_SUFFIXES = (".mp4", ".mov", ".mkv", ".webm", ".avi", ".gif")
@@ -100,7 +100,7 @@ def grade_folder(
         SettingError: ``folder`` is not a folder, holds no hand-in, or more than
             :data:`MAX_HANDINS`.
     """
-    root = Path(folder)
+    root = checked_path(folder, "hand-in folder")
     if not root.is_dir():
         raise SettingError(f"{str(root)!r} is not a folder; expected a folder of hand-ins")
     tol = tolerances if tolerances is not None else Tolerances()
