@@ -127,3 +127,27 @@ def test_check_names_the_motion_it_judged(tmp_path, capsys):
     assert capsys.readouterr().out.splitlines()[0] == f"checked {motion}"
     assert main(["check", str(motion), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["motion"] == str(motion)
+
+
+def _doc_block(text: str, command: str) -> list[str]:
+    """The lines docs/grading.md shows after ``$ <command>``, to the end of its block."""
+    lines = text.splitlines()
+    start = lines.index(f"$ {command}") + 1
+    end = next(k for k in range(start, len(lines)) if lines[k].startswith("```"))
+    return lines[start:end]
+
+
+def test_the_reports_in_docs_grading_are_what_grade_prints(tmp_path, monkeypatch, capsys):
+    doc = (Path(__file__).parents[2] / "docs" / "grading.md").read_text()
+    monkeypatch.chdir(tmp_path)
+    slow = doc.split("```toml\n", 1)[1].split("```", 1)[0]  # too_slow.toml
+    assert main(["run", "--headless", "--log", "lab.csv"]) == 0
+    capsys.readouterr()
+    assert main(["grade", "lab.csv"]) == 0
+    assert capsys.readouterr().out.splitlines() == _doc_block(doc, "so101sim grade lab.csv")
+    motion = tmp_path / "too_slow.toml"
+    motion.write_text(slow)
+    assert main(["run", "--headless", str(motion), "--log", "too_slow.csv"]) == 0
+    capsys.readouterr()
+    assert main(["grade", "too_slow.csv"]) == 1
+    assert capsys.readouterr().out.splitlines() == _doc_block(doc, "so101sim grade too_slow.csv")
