@@ -17,9 +17,9 @@ it runs, not at the top, to start fast (``so101sim --help`` imports no MuJoCo) a
 ``--record`` can choose the OpenGL backend before MuJoCo is first imported.
 
 This module holds the parser and :func:`main`; the commands are in :mod:`.run` (run, hold),
-:mod:`.commands` (view, model-path, pose, check, teleop), :mod:`.tools` (record, workspace,
-cache, examples) and :mod:`.demo`; what is printed, and the signal handling that finishes the
-output files first, in :mod:`.output`.
+:mod:`.commands` (view, model-path, pose, check, teleop), :mod:`.tools` (record, grade,
+workspace, cache, examples) and :mod:`.demo`; what is printed, and the signal handling that
+finishes the output files first, in :mod:`.output`.
 """
 
 from __future__ import annotations

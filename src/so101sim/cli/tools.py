@@ -1,8 +1,8 @@
-"""More ``so101sim`` commands: ``record`` (a student's own script to a video), ``workspace``,
-``cache`` and ``examples``, and the camera options every recording command shares
-(:func:`add_camera_options`, :func:`camera_options`). Like :mod:`so101sim.cli`, they only parse
-and print: each calls one library function. Heavy modules are imported inside the commands, to
-keep start-up fast.
+"""More ``so101sim`` commands: ``record`` (a student's own script to a video), ``grade`` (an
+instructor's check of hand-ins), ``workspace``, ``cache`` and ``examples``, and the camera
+options every recording command shares (:func:`add_camera_options`, :func:`camera_options`).
+Like :mod:`so101sim.cli`, they only parse and print: each calls one library function. Heavy
+modules are imported inside the commands, to keep start-up fast.
 """
 
 from __future__ import annotations
