@@ -205,6 +205,7 @@ def _add_grade_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--tolerance-deg",
         type=float,
+        metavar="DEG",
         default=10.0,
         help="largest joint error of a reached pose, and most a joint may move in the hold, "
         "degrees (body joints, the gripper is not judged; default 10: the fitted STS3215 "
@@ -213,6 +214,7 @@ def _add_grade_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--time-tolerance-s",
         type=float,
+        metavar="S",
         default=0.25,
         help="most a phase's duration may differ from the spec's 2 s (default 0.25)",
     )
