@@ -11,10 +11,11 @@ from grade_helpers import make_log, make_video
 
 from so101sim.errors import SettingError
 from so101sim.lab import gradefolder, gradelog
-from so101sim.lab.grade import LabSpec, Tolerances, check_video, find_moves, grade_log
+from so101sim.lab.grade import LabSpec, Tolerances, find_moves, grade_log
 from so101sim.lab.gradefolder import grade_folder
 from so101sim.lab.gradelog import NUMBER_COLUMNS, NotASo101SimLogError, read_run_log
 from so101sim.lab.gradereport import format_folder, format_grade, summary_columns, write_summary
+from so101sim.lab.gradevideo import check_video
 from so101sim.recording.csvlog import csv_columns
 
 
@@ -204,17 +205,17 @@ def test_the_video_is_checked_for_opening_and_length(tmp_path, logs):
     assert not short.passed and short.failures[0].startswith("video: 91 frames")
     broken = tmp_path / "broken.mp4"
     broken.write_bytes(good.read_bytes()[:300])
-    assert "does not open as a video" in check_video(broken, 6.0, Tolerances()).text
-    missing = check_video(tmp_path / "none.mp4", 6.0, Tolerances())
+    assert "does not open as a video" in check_video(broken, 6.0, 0.25).text
+    missing = check_video(tmp_path / "none.mp4", 6.0, 0.25)
     assert not missing.passed and "does not exist" in missing.text
 
 
 def test_a_video_too_large_is_not_read(tmp_path, monkeypatch):
-    from so101sim.lab import grade
+    from so101sim.lab import gradevideo
 
     video = make_video(tmp_path / "good.mp4", 181)
-    monkeypatch.setattr(grade, "MAX_VIDEO_BYTES", 100)
-    result = check_video(video, 6.0, Tolerances())
+    monkeypatch.setattr(gradevideo, "MAX_VIDEO_BYTES", 100)
+    result = check_video(video, 6.0, 0.25)
     assert not result.passed and "expected a video of at most" in result.text
     assert result.frames is None  # never opened
 

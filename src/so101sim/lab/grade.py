@@ -19,7 +19,7 @@ the moves away right after it), and ``hold`` what lies between. A jump of the co
 start of a hold (the handout's ``hold_position`` commands the pose the arm reached) is not a
 move.
 
-:func:`check_video` checks the hand-in's video. A folder of hand-ins is graded by
+:mod:`.gradevideo` checks the hand-in's video. A folder of hand-ins is graded by
 :mod:`.gradefolder`. Results are dataclasses; the text and the CSV summary are made by
 :mod:`.gradereport`.
 """
@@ -36,10 +36,9 @@ import numpy as np
 from ..units import BODY_JOINTS, JOINT_NAMES, STARTING_POSE, ZERO_POSE
 from ..validation import check_range
 from .gradelog import RunLog, read_run_log
+from .gradevideo import VideoResult, check_video
 
 PHASES = ("to_zero", "hold", "return")
-MAX_VIDEO_BYTES = 2 * 2**30
-"""The largest video checked (2 GiB; the lab's 6 s at 640x480 is well under 1 MiB)."""
 
 
 @dataclass(frozen=True)
@@ -111,18 +110,6 @@ class PhaseResult:
     @property
     def duration(self) -> float | None:
         return None if self.start is None or self.end is None else self.end - self.start
-
-
-@dataclass(frozen=True)
-class VideoResult:
-    """The hand-in's video: readable, and as long as the log within the time tolerance."""
-
-    path: Path
-    passed: bool
-    text: str
-    frames: int | None = None
-    fps: float | None = None
-    length_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -326,43 +313,6 @@ def grade_run(
     return GradeResult(log.path, log.rows, log.duration, log.servo_model, tuple(phases), tol, spec)
 
 
-# ---------------------------------------------------------------------------- video
-def check_video(path: str | os.PathLike[str], duration: float, tol: Tolerances) -> VideoResult:
-    """Whether the video at ``path`` opens (imageio, its first frame decoded) and covers
-    ``duration`` simulated seconds within ``tol.time_s``: so101sim's videos hold one frame at
-    the start and one every 1/fps s, so their length is (frames - 1) / fps."""
-    p = Path(path)
-    try:
-        size = p.stat().st_size if p.is_file() else None
-    except OSError as exc:  # a name too long, a folder that cannot be read
-        return VideoResult(p, False, f"{p.name[:40]} cannot be read ({exc.strerror})")
-    if size is None:
-        return VideoResult(p, False, f"{p.name} does not exist (or is not a file)")
-    if size > MAX_VIDEO_BYTES:
-        return VideoResult(
-            p, False, f"{p.name} is {size / 2**30:.1f} GiB; expected a video of at most "
-            f"{MAX_VIDEO_BYTES // 2**30} GiB",
-        )  # fmt: skip
-    import imageio.v2 as imageio  # imported here: only a video needs it
-
-    try:
-        with imageio.get_reader(p, format="FFMPEG") as reader:  # type: ignore[arg-type]
-            fps = float(reader.get_meta_data().get("fps") or 0.0)
-            reader.get_data(0)
-            frames = int(reader.count_frames())
-    except Exception as exc:  # whatever the decoder raises: not a readable video
-        said = " ".join(str(exc).split())[:120] or type(exc).__name__
-        return VideoResult(p, False, f"{p.name} does not open as a video ({said})")
-    if not (fps > 0 and frames > 0):
-        return VideoResult(p, False, f"{p.name} holds no frames", frames, fps)
-    length = (frames - 1) / fps
-    ok = abs(length - duration) <= tol.time_s
-    text = f"{frames} frames at {fps:g} fps: {length:.2f} s (log: {duration:.2f} s)"
-    if not ok:
-        text += f"; expected the log's length ± {tol.time_s:g} s"
-    return VideoResult(p, ok, text, frames, fps, length)
-
-
 def grade_log(
     path: str | os.PathLike[str],
     *,
@@ -380,7 +330,7 @@ def grade_log(
     result = grade_run(read_run_log(path), tol, spec)
     if video is None:
         return result
-    checked = check_video(video, result.duration, tol)
+    checked = check_video(video, result.duration, tol.time_s)
     return replace(result, video=checked)
 
 
@@ -390,8 +340,6 @@ __all__ = [
     "LabSpec",
     "PhaseResult",
     "Tolerances",
-    "VideoResult",
-    "check_video",
     "find_moves",
     "grade_log",
     "grade_run",
