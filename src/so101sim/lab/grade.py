@@ -287,7 +287,7 @@ def grade_run(
             )
         )
     if rows[1] is None:
-        phases.append(_missing("hold", "no hold: the arm never reached it"))
+        phases.append(_missing("hold", "no hold: the commands never went to all zeros first"))
     else:
         a, b = rows[1]
         moved, joint = _worst(np.ptp(q[a : b + 1], axis=0))

@@ -42,8 +42,8 @@ def format_grade(result: GradeResult) -> str:
     PASS, or FAIL with each reason."""
     servo = result.servo_model or "not named in the log"
     lines = [
-        f"{result.log}: {result.rows} rows, {result.duration:.3f} s of simulated time; "
-        f"servo model: {servo}",
+        f"{result.log}: {result.rows} row{'s' * (result.rows != 1)}, {result.duration:.3f} s of "
+        f"simulated time; servo model: {servo}",
         _spec_line(result),
     ]
     for p in result.phases:
