@@ -17,6 +17,7 @@ from so101sim.lab.gradelog import NUMBER_COLUMNS, NotASo101SimLogError, read_run
 from so101sim.lab.gradereport import format_folder, format_grade, summary_columns, write_summary
 from so101sim.lab.gradevideo import check_video
 from so101sim.recording.csvlog import csv_columns
+from so101sim.units import JOINT_NAMES, STARTING_POSE
 
 
 @pytest.fixture(scope="module")
@@ -276,3 +277,48 @@ def test_a_bad_hand_in_is_its_students_error_and_the_folder_is_bounded(
         grade_folder(tmp_path / "empty")
     with pytest.raises(SettingError, match="not a folder"):
         grade_folder(handins / "ada.csv")
+
+
+def _handout_style_log(path, m) -> None:
+    """The lab as the handout writes it (raw MuJoCo: a ramp from the measured pose, a hold of
+    the pose reached, a ramp back), logged through so101sim.record with no video."""
+    import mujoco
+
+    from so101sim import record
+    from so101sim.model.load import arm_units
+
+    units = arm_units(m)
+    d = mujoco.MjData(m)
+    rest = np.array([STARTING_POSE[n] for n in JOINT_NAMES])
+    d.qpos[:6] = units.to_radians(rest)
+
+    def go(viewer, goal, seconds):
+        begin, t0 = units.from_radians(d.qpos[:6].copy()), d.time
+        while d.time - t0 <= seconds:
+            a = min((d.time - t0) / seconds, 1.0)
+            d.ctrl[:6] = units.to_radians((1 - a) * begin + a * goal)
+            mujoco.mj_step(m, d)
+            viewer.sync()
+
+    with record(m, d, None, log=path) as viewer:
+        go(viewer, np.zeros(6), 2.0)
+        here, t0 = d.qpos[:6].copy(), d.time  # the handout's hold: the pose reached
+        while d.time - t0 <= 2.0:
+            d.ctrl[:6] = here
+            mujoco.mj_step(m, d)
+            viewer.sync()
+        go(viewer, rest, 2.0)
+
+
+def test_a_handout_style_script_on_the_fitted_servos_passes(tmp_path):
+    """The fitted servos stop short, so the handout's hold commands a pose ~8° off zero: that
+    jump of the command is not a move, and the phases are where the script put them."""
+    from so101sim.model.load import load_model
+
+    path = tmp_path / "handout.csv"
+    _handout_style_log(path, load_model(physics_only=True))  # the default arm: sts3215
+    result = grade_log(path)
+    assert result.passed, format_grade(result)
+    starts = [p.start for p in result.phases]
+    assert starts == pytest.approx([0.002, 2.002, 4.004], abs=0.01)
+    assert result.phase("to_zero").check("reached").value > 5.0  # the servos' lag: the jump
