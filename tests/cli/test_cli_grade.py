@@ -33,6 +33,31 @@ def test_grade_passes_the_lab_and_fails_a_short_move(logs, capsys):
     assert main(["grade", str(logs["short"]), "--tolerance-deg", "60"]) == 0
 
 
+def test_grade_json_of_a_log_and_of_a_folder(logs, tmp_path, capsys):
+    import json
+
+    video = make_video(tmp_path / "lab.mp4", 181)
+    assert main(["grade", str(logs["short"]), "--video", str(video), "--json"]) == 1
+    data = json.loads(capsys.readouterr().out)
+    assert data["passed"] is False and data["log"] == str(logs["short"])
+    assert [p["name"] for p in data["phases"]] == ["to_zero", "hold", "return"]
+    reached = next(c for c in data["phases"][0]["checks"] if c["name"] == "reached")
+    assert reached["passed"] is False and reached["joint"] == "shoulder_lift"
+    assert data["video"]["frames"] == 181 and data["video"]["path"] == str(video)
+    folder = tmp_path / "handins"
+    folder.mkdir()
+    (folder / "ada.csv").write_bytes(logs["lab"].read_bytes())
+    (folder / "bob.csv").write_text("not a log\n")
+    summary = tmp_path / "s.csv"
+    assert main(["grade", str(folder), "--json", "--summary", str(summary)]) == 1
+    data = json.loads(capsys.readouterr().out)  # the JSON alone on stdout
+    assert [(h["student"], h["error"] is None) for h in data["handins"]] == [
+        ("ada", True),
+        ("bob", False),
+    ]
+    assert data["handins"][0]["grade"]["passed"] is True and summary.is_file()
+
+
 def test_grade_with_the_video(logs, tmp_path, capsys):
     video = make_video(tmp_path / "lab.mp4", 181)
     assert main(["grade", str(logs["lab"]), "--video", str(video)]) == 0

@@ -202,6 +202,7 @@ def _add_grade_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--summary", metavar="CSV", help="with a folder: one row per student, per phase")
     p.add_argument("--force", action="store_true", help="overwrite an existing --summary file")
+    p.add_argument("--json", action="store_true", help="print the grades as JSON")
     p.add_argument(
         "--tolerance-deg",
         type=float,

@@ -280,9 +280,18 @@ def cmd_grade(args: argparse.Namespace) -> int:
     from ..gl import skip_opengl
 
     skip_opengl()  # nothing is drawn (the log reader's module imports MuJoCo)
+    import json
+
     from ..lab.grade import Tolerances, grade_log
     from ..lab.gradefolder import grade_folder
-    from ..lab.gradereport import check_summary_path, format_folder, format_grade, write_summary
+    from ..lab.gradereport import (
+        check_summary_path,
+        folder_dict,
+        format_folder,
+        format_grade,
+        grade_dict,
+        write_summary,
+    )
     from ..validation import checked_path
 
     tolerances = Tolerances(args.tolerance_deg, args.time_tolerance_s)
@@ -296,7 +305,7 @@ def cmd_grade(args: argparse.Namespace) -> int:
                 f"folder, not {args.handin!r} (or no --summary)"
             )
         result = grade_log(args.handin, video=args.video, tolerances=tolerances)
-        print(format_grade(result))
+        print(json.dumps(grade_dict(result), indent=2) if args.json else format_grade(result))
         return 0 if result.passed else 1
     if args.video is not None:
         raise SettingError(
@@ -306,7 +315,9 @@ def cmd_grade(args: argparse.Namespace) -> int:
     if args.summary is not None:
         check_summary_path(args.summary, force=args.force)  # before anything is graded
     folder = grade_folder(args.handin, tolerances=tolerances)
-    print(format_folder(folder))
+    print(json.dumps(folder_dict(folder), indent=2) if args.json else format_folder(folder))
     if args.summary is not None:
-        print(f"wrote the summary to {write_summary(folder, args.summary, force=args.force)}")
+        written = write_summary(folder, args.summary, force=args.force)
+        if not args.json:  # the JSON alone on stdout
+            print(f"wrote the summary to {written}")
     return 0 if folder.passed else 1

@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import csv
 import os
+from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 from ..errors import OutputPathError
 from ..validation import check_output_path
@@ -98,6 +100,51 @@ def format_folder(result: FolderResult) -> str:
     return "\n".join(lines)
 
 
+def grade_dict(result: GradeResult) -> dict[str, Any]:
+    """One hand-in as plain data for JSON: ``log``, ``passed``, ``failures``, ``servo_model``,
+    ``rows``, ``duration_s``, ``tolerances``, ``phases`` (each with its ``checks``), ``video``."""
+    phases = [
+        {
+            "name": p.name,
+            "passed": p.passed,
+            "start_s": p.start,
+            "duration_s": p.duration,
+            "checks": [asdict(c) for c in p.checks],
+        }
+        for p in result.phases
+    ]
+    video = None
+    if result.video is not None:
+        video = asdict(result.video) | {"path": str(result.video.path)}
+    return {
+        "log": str(result.log),
+        "passed": result.passed,
+        "failures": result.failures,
+        "servo_model": result.servo_model,
+        "rows": result.rows,
+        "duration_s": result.duration,
+        "tolerances": asdict(result.tolerances),
+        "phases": phases,
+        "video": video,
+    }
+
+
+def folder_dict(result: FolderResult) -> dict[str, Any]:
+    """A folder's grades as plain data for JSON: ``folder``, ``passed``, ``handins`` (each:
+    ``student``, ``named_by``, ``log``, ``error``, ``grade``: :func:`grade_dict` or None)."""
+    handins = [
+        {
+            "student": h.student,
+            "named_by": _SOURCES[h.source],
+            "log": None if h.log is None else str(h.log),
+            "error": h.error or None,
+            "grade": None if h.result is None else grade_dict(h.result),
+        }
+        for h in result.handins
+    ]
+    return {"folder": str(result.folder), "passed": result.passed, "handins": handins}
+
+
 def summary_columns() -> list[str]:
     """The summary's columns: the student, the files, the verdict, then per phase
     ``<phase>_passed``, ``<phase>_start_s``, ``<phase>_duration_s`` and its figures, then the
@@ -172,8 +219,10 @@ def write_summary(
 
 __all__ = [
     "check_summary_path",
+    "folder_dict",
     "format_folder",
     "format_grade",
+    "grade_dict",
     "summary_columns",
     "write_summary",
 ]
