@@ -61,7 +61,7 @@ class Tolerances:
     the hold (degrees; the body joints: the gripper is not judged, see :func:`_worst`). 10° by
     default: the fitted STS3215 servos (``--arm sts3215``, so101sim's default) end the lab's
     2 s move 7.8° short at the elbow, as the real arm does; the ideal actuators of the
-    official model reach within 0.3°.
+    official model reach within 0.1°.
     ``time_s``: a phase's duration from the spec's (0.25 s by default, an eighth of a phase).
     """
 
@@ -75,8 +75,10 @@ class Tolerances:
 
 @dataclass(frozen=True)
 class Check:
-    """One judged figure: ``name`` (``duration``, ``reached``, ...), its ``value`` and the most
-    it may be (``limit``), in ``unit``; ``text`` says it in words; ``joint``: the worst one."""
+    """One judged figure: ``name`` (``start``, ``duration``, ``reached``, ``held``, ``end``;
+    ``found`` when the phase was not), its ``value`` and what it is judged by (``limit``: the
+    most an angle may be; for a duration the spec's seconds, within the time tolerance), in
+    ``unit``; ``text`` says it in words; ``joint``: the worst one."""
 
     name: str
     passed: bool
