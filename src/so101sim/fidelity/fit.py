@@ -37,14 +37,15 @@ import numpy as np
 from ..errors import SettingError
 from ..model.arm import (
     PROFILE_DEFAULT,
+    ArmLike,
     ArmProfile,
     ServoParams,
-    apply_profile,
     fill_delay_history,
     load_profile,
     write_servo,
 )
-from ..model.load import arm_index, arm_units, scene_path
+from ..model.build import build, recipe
+from ..model.load import arm_index, arm_units
 from ..sim.stepping import BatchStepper
 from ..units import JOINT_NAMES, ArmUnits
 from ..validation import check_count
@@ -80,12 +81,11 @@ Calibration = tuple[np.ndarray, np.ndarray]  # per joint: the reading's scale an
 def replay_model(base: ArmProfile, model_path: str | Path | None) -> mujoco.MjModel:
     """The model a fit replays on: ``base`` applied with the longest delay a fit considers (so
     any delay up to it can be written in place)."""
-    spec = mujoco.MjSpec.from_file(str(model_path or scene_path()))
     wide = replace(base, servo=replace(base.servo, delay_s=MAX_DELAY_S),
                    joints={j: {k: v for k, v in d.items() if k != "delay_s"}
                            for j, d in base.joints.items()})  # fmt: skip
-    apply_profile(spec, wide)
-    return spec.compile()
+    # the model builder's, a one-off (not cached); the batch's copies are what the fit writes into
+    return build(recipe(model_path, arm=wide, keep=False))
 
 
 class ArmReplayer:
@@ -200,7 +200,7 @@ def _split(eps: list[Episode], holdout: Sequence[int] | None) -> tuple[list, lis
 def fit(
     logs: Sequence[str | Path | ArmLog],
     *,
-    arm: str | Path | ArmProfile | None = "sts3215",
+    arm: ArmLike = "sts3215",
     episodes: list[int] | None = None,
     calibration: str | Path | None = None,
     units: str = "auto",

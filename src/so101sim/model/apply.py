@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Any
 
 import mujoco
@@ -13,7 +12,7 @@ import numpy as np
 from ..errors import ProfileError
 from ..units import JOINT_NAMES
 from .profiles import load_profile
-from .servo import NOSLIP_ITERATIONS, ArmProfile, ServoParams
+from .servo import NOSLIP_ITERATIONS, ArmLike, ArmProfile, ServoParams
 
 
 def delay_samples(delay_s: float, timestep: float) -> int:
@@ -65,7 +64,7 @@ def _set_delay(actuator: Any, params: ServoParams, timestep: float) -> None:
         actuator.nsample = 0
 
 
-def apply_profile(spec: mujoco.MjSpec, profile: str | Path | ArmProfile | None) -> ArmProfile:
+def apply_profile(spec: mujoco.MjSpec, profile: ArmLike) -> ArmProfile:
     """Apply ``profile`` to every SO-101 joint of ``spec`` and the actuator driving it; returns
     the profile. Joints the spec lacks are skipped (a scene may hold only part of the arm)."""
     prof = load_profile(profile)

@@ -50,7 +50,6 @@ from ..errors import ProfileError
 from .apply import apply_profile, apply_servo, delay_samples
 from .draw import draw_servo_deltas
 from .profiles import (
-    default_profile,
     gripper_full_range,
     load_profile,
     profile_from_toml,
@@ -66,6 +65,7 @@ from .servo import (
     STALL_TORQUE_NM,
     UNCERTAIN_FIELDS,
     UNCERTAIN_LIMIT,
+    ArmLike,
     ArmProfile,
     ServoParams,
 )
@@ -77,12 +77,12 @@ __all__ = [
     "STALL_TORQUE_NM",
     "UNCERTAIN_FIELDS",
     "UNCERTAIN_LIMIT",
+    "ArmLike",
     "ArmProfile",
     "ProfileError",
     "ServoParams",
     "apply_profile",
     "apply_servo",
-    "default_profile",
     "delay_samples",
     "draw_servo_deltas",
     "fill_delay_history",

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
@@ -11,11 +10,11 @@ from ..errors import ProfileError
 from ..units import JOINT_NAMES
 from ..validation import check_range
 from .profiles import load_profile
-from .servo import _BOUNDS, _OPEN_LOW, MAX_SIGMAS, UNCERTAIN_FIELDS, ArmProfile
+from .servo import _BOUNDS, _OPEN_LOW, MAX_SIGMAS, UNCERTAIN_FIELDS, ArmLike
 
 
 def draw_servo_deltas(
-    profile: str | Path | ArmProfile | None,
+    profile: ArmLike,
     rng: np.random.Generator,
     sigmas: float = 1.0,
     joints: tuple[str, ...] = JOINT_NAMES,

@@ -4,10 +4,9 @@ back (:func:`profile_toml`); the key a profile's values give a compiled model
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
+import os
 import tomllib
-from collections.abc import Iterator
 from dataclasses import fields, replace
 from functools import lru_cache
 from importlib import resources
@@ -27,6 +26,7 @@ from .servo import (
     REQUIRED_FIELDS,
     UNCERTAIN_FIELDS,
     UNCERTAIN_LIMIT,
+    ArmLike,
     ArmProfile,
     ServoParams,
     _check_params,
@@ -43,7 +43,7 @@ def profile_names() -> list[str]:
     return sorted(p.stem for p in _arms_dir().glob("*.toml"))
 
 
-def load_profile(profile: str | Path | ArmProfile | None = None) -> ArmProfile:
+def load_profile(profile: ArmLike = None) -> ArmProfile:
     """A profile by name (``"official"``, ``"sts3215"``, ``"sts3215-12v"``), by TOML path, or
     as given; None is :data:`PROFILE_DEFAULT`.
 
@@ -54,11 +54,9 @@ def load_profile(profile: str | Path | ArmProfile | None = None) -> ArmProfile:
     if isinstance(profile, ArmProfile):
         return profile
     if profile is None:
-        if _override:
-            return _override[-1]
         profile = PROFILE_DEFAULT
-    text = str(profile)
-    if isinstance(profile, Path) or text.endswith(".toml") or "/" in text or "\\" in text:
+    text = os.fspath(profile) if isinstance(profile, os.PathLike) else str(profile)
+    if isinstance(profile, os.PathLike) or text.endswith(".toml") or "/" in text or "\\" in text:
         path = Path(text).expanduser()
         if not path.is_file():
             raise ProfileError(
@@ -85,21 +83,6 @@ def profile_from_toml(text: str, where: str = "arm profile") -> ArmProfile:
     except tomllib.TOMLDecodeError as exc:
         raise ProfileError(f"{where} is not valid TOML ({exc})") from exc
     return _from_dict(raw, where, set())
-
-
-_override: list[ArmProfile] = []
-
-
-@contextlib.contextmanager
-def default_profile(profile: str | Path | ArmProfile) -> Iterator[ArmProfile]:
-    """While the block runs, ``profile`` is what None means (for ``so101sim record --arm``,
-    which runs a script that loads its own models). Not for threads that outlive the block."""
-    prof = load_profile(profile)
-    _override.append(prof)
-    try:
-        yield prof
-    finally:
-        _override.remove(prof)
 
 
 def _from_file(path: Path, seen: set[str]) -> ArmProfile:
@@ -252,7 +235,7 @@ def profile_toml(profile: ArmProfile, *, comment: str = "") -> str:
     return "\n".join(lines) + "\n"
 
 
-def profile_key(profile: str | Path | ArmProfile | None) -> str:
+def profile_key(profile: ArmLike) -> str:
     """A short key naming what ``profile`` does to a model: ``""`` when it is the vendored
     actuators (the shipped ``official`` values: the model file as it is), else ``"arm-"`` and
     a digest of its values (the model caches' key)."""
@@ -275,7 +258,7 @@ def _official_values() -> str:
     return _values_toml(load_profile(OFFICIAL))
 
 
-def gripper_full_range(profile: str | Path | ArmProfile | None) -> np.ndarray:
+def gripper_full_range(profile: ArmLike) -> np.ndarray:
     """``[-limit, limit]`` (N·m): the gripper servo's torque limit at the profile's supply,
     before a firmware torque limit (the profile's ``torque_scale``). The follower and the
     environments give the gripper their ``gripper_torque_fraction`` of it (LeRobot's

@@ -6,6 +6,7 @@ model :mod:`.apply`, writing a servo into a compiled model :mod:`.runtime`.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
@@ -194,6 +195,11 @@ class ArmProfile:
     def with_supply(self, volts: float) -> ArmProfile:
         """The same profile driven at ``volts`` (7.4 or 12)."""
         return replace(self, supply_v=_check_supply(volts, "supply_v"))
+
+
+ArmLike = str | os.PathLike[str] | ArmProfile | None
+"""An arm profile as every so101sim function takes it: a shipped name (``"sts3215"``,
+``"official"``), a TOML path, an :class:`ArmProfile`, or None (:data:`PROFILE_DEFAULT`)."""
 
 
 def _stall(volts: float) -> float:
