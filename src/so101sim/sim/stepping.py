@@ -34,9 +34,11 @@ import mujoco
 import numpy as np
 from mujoco import rollout as _rollout
 
+from ..errors import ModelError
 from ..exitgate import mujoco_call
 from ..model.load import arm_index
 from ..model.twin import Twin, contact_twin
+from .batch import BatchStepper  # the kernel for many models at once, importable from here
 from .divergence import _DIVERGENCE_WARNINGS, _STATE_SPEC, ADVICE, _check_divergence, _warnings
 from .observers import (  # the kernel's observers, importable from here as before
     MAX_PLAYBACK_SPEED,
@@ -222,8 +224,17 @@ def step_block(
                 states = _step_block(m, d, ctrl_full, s0, None)
             else:
                 states = _step_twin(m, d, twin, ctrl_full, s0, contact_counts, actuator_forces)
-        _check_divergence(m, d, states, s0, 1 + arm_index(m).qpos, advice)
+        _check_divergence(m, d, states, s0, _watched_qpos(m), advice)
     return states
+
+
+def _watched_qpos(m: mujoco.MjModel) -> np.ndarray:
+    """The state columns the divergence check reads: the arm's joint angles, or every ``qpos``
+    of a model that is not an SO-101 (the servo bench)."""
+    try:
+        return 1 + arm_index(m).qpos
+    except ModelError:
+        return 1 + np.arange(m.nq)
 
 
 def _block_size(observers: Sequence[Observer], now: float, dt: float, left: int) -> int:
@@ -370,6 +381,7 @@ __all__ = [
     "MAX_PLAYBACK_SPEED",
     "MAX_VIEWER_PERIOD",
     "MIN_PLAYBACK_SPEED",
+    "BatchStepper",
     "Observer",
     "Pacer",
     "Trace",
