@@ -5,9 +5,10 @@ simplified meshes: their manifest, matching a model to the file its draft versio
 The ``draft`` preset swaps the visual meshes for simplified ones shipped in
 ``so101sim/data/draft_meshes`` (about 5000 triangles each), or, for frames no larger than
 :data:`SMALL_FRAME_PX` on their longer side (the images a policy is trained on), in
-``so101sim/data/draft_meshes_small`` (about 800: a CPU rasteriser draws such a frame about twice
-as fast, and at that size the two sets look alike), and turns off multisampling and reflections (the renderer turns
-off shadows); ``full`` keeps the model's look. The physics model is never changed.
+``so101sim/data/draft_meshes_small`` (about 800: a CPU rasteriser draws such a frame about
+twice as fast, and at that size the two sets look alike), and turns off multisampling and
+reflections (the renderer turns off shadows); ``full`` keeps the model's look. The physics
+model is never changed.
 """
 
 from __future__ import annotations
