@@ -95,6 +95,12 @@ def add_learning_commands(sub: SubParsers) -> None:
         action="store_true",
         help="also write observation.environment_state (the objects' poses)",
     )
+    p.add_argument(
+        "--no-video",
+        action="store_true",
+        help="store the images as PNG frames in the data files, not as AV1 videos (larger; a "
+        "training step decodes no video)",
+    )
     p.add_argument("--randomize", default="none", help=RANDOMIZE_HELP)
     p.add_argument(
         "--after-success", type=float, default=1.0, help="seconds kept after success (1)"
@@ -173,6 +179,7 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         after_success_s=args.after_success,
         workers=_workers(args.workers),
         use_ray=args.ray,
+        video=not args.no_video,
     )
     bar = tqdm(total=args.episodes, unit="episode", disable=args.no_progress, file=sys.stderr)
 
