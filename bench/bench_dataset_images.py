@@ -8,6 +8,9 @@ frames in the data files), writes ``--episodes`` episodes of ``pick_cube`` with 
 and ``wrist`` cameras at ``--size`` (WIDTHxHEIGHT) through ``generate_dataset`` into a
 temporary folder and prints the ratio to real time, the wall time and the load average (1 min)
 before and after: on a shared machine the ratio depends on the load, so read them together.
+It also prints the CPU seconds spent (this process and its workers) per simulated second,
+which the load changes much less, and the ratio to real time two free cores would give at that
+cost (2 / that figure, an upper bound: it assumes both cores busy all the time).
 Also times the rendering alone (ms per frame, one camera, this process) with the small draft
 meshes used at this size. Needs LeRobot (the robot plugin's Python). Nothing is asserted.
 """
@@ -17,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import tempfile
 import time
 from pathlib import Path
@@ -40,17 +44,31 @@ def render_ms(size: tuple[int, int], frames: int = 60) -> float:
         env.close()
 
 
+def cpu_seconds() -> float:
+    """User + system CPU time of this process and its finished children (the workers)."""
+    total = 0.0
+    for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN):
+        r = resource.getrusage(who)
+        total += r.ru_utime + r.ru_stime
+    return total
+
+
 def one_run(episodes: int, workers: int, size: tuple[int, int], video: bool) -> dict:
     from lerobot_robot_so101sim.dataset import DatasetSettings, generate_dataset
 
     with tempfile.TemporaryDirectory() as tmp:
         load0 = os.getloadavg()[0]
+        cpu0 = cpu_seconds()
         settings = DatasetSettings(
             task="pick_cube", episodes=episodes, root=str(Path(tmp) / "ds"),
             cameras=("front", "wrist"), image_size=size, workers=workers, video=video,
         )  # fmt: skip
         report = generate_dataset(settings)
+        cpu = cpu_seconds() - cpu0
         return {
+            "cpu_s": round(cpu, 1),
+            "cpu_s_per_sim_s": round(cpu / report.sim_seconds, 3),
+            "x_real_time_if_2_free_cores": round(2 * report.sim_seconds / cpu, 2),
             "workers": workers,
             "storage": "video" if video else "png",
             "episodes": report.episodes,
