@@ -161,7 +161,8 @@ def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take
     import imageio.v3 as iio
 
     for ep in report["per_episode"]:
-        if ep.get("video"):  # the front view (640x480) and each camera scaled to 480 rows
+        if not ep["success"]:  # the front view (640x480) and each camera scaled to 480 rows
+            assert ep["video"], "a failed episode has its video"
             props = iio.improps(ep["video"], plugin="pyav")
             assert props.shape[0] == ep["steps"] and props.shape[1:3] == (480, 640 * 3)
     from so101sim.cli.main import main
