@@ -4,9 +4,10 @@ handed back in seed order.
 Each worker runs so101sim's :func:`~so101sim.envs.run.expert_frames` (plain arguments, so it
 imports nothing of LeRobot or of this plugin) and sends the episode's arrays back; at most
 ``2 × workers`` episodes are in flight (the frames held in memory stay bounded). A worker
-starts with one thread for OpenMP and for Mesa's CPU rasteriser (``OMP_NUM_THREADS``,
-``LP_NUM_THREADS``): the workers already share the cores, and more threads only make them
-wait on each other.
+starts with one thread for Mesa's CPU rasteriser (``LP_NUM_THREADS``): the workers already
+share the cores, and more threads only make them wait on each other. (Not OpenMP's thread
+count: NumPy's linear algebra rounds differently with another count, which changes the
+expert's plans, and the same seed must give the same episode whatever the worker count.)
 """
 
 from __future__ import annotations
@@ -26,12 +27,12 @@ from so101sim.errors import SettingError
 if TYPE_CHECKING:
     from .dataset import DatasetSettings
 
-WORKER_THREADS = {"OMP_NUM_THREADS": "1", "LP_NUM_THREADS": "1"}
+WORKER_THREADS = {"LP_NUM_THREADS": "1"}
 """Set in each worker before it imports MuJoCo or starts OpenGL (unless already set)."""
 
 
 def worker_init() -> None:
-    """A worker's start: one thread each for OpenMP and llvmpipe (see the module's text)."""
+    """A worker's start: one llvmpipe thread (see the module's text)."""
     for key, value in WORKER_THREADS.items():
         os.environ.setdefault(key, value)
 
