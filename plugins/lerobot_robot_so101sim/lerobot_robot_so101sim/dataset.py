@@ -19,7 +19,8 @@ LeRobot's own writer (``LeRobotDataset.create``, ``add_frame``, ``save_episode``
 ``finalize``; videos encoded as the frames arrive, on a thread: ``streaming_encoding``), so
 the dataset is the same for the same seeds whatever the worker count (:mod:`.episodes`). With
 ``video=False`` the images are stored as PNG frames in the data files instead of AV1 videos:
-larger, but a training step decodes no video. The
+larger, and slower to train on with action chunks (LeRobot 0.6.1 reads a chunk's rows whole,
+decoding each row's images). The
 dataset is written to a temporary folder beside ``root`` and moved there when complete
 (nothing half-done is left). The settings (task, seeds, randomisation) are recorded in
 ``meta/so101sim.json``.

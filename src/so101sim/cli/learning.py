@@ -98,8 +98,8 @@ def add_learning_commands(sub: SubParsers) -> None:
     p.add_argument(
         "--no-video",
         action="store_true",
-        help="store the images as PNG frames in the data files, not as AV1 videos (larger; a "
-        "training step decodes no video)",
+        help="store the images as PNG frames in the data files, not as AV1 videos (larger, and "
+        "slower to train ACT on: LeRobot decodes every row of an action chunk's images)",
     )
     p.add_argument("--randomize", default="none", help=RANDOMIZE_HELP)
     p.add_argument(
