@@ -129,6 +129,11 @@ def test_unreadable_files_exit_2(tmp_path, capsys):
     bad.write_text("{not json")
     assert main(["policy-check", str(policy), "--robot-config", str(bad)]) == 2
     assert "JSON or YAML" in capsys.readouterr().err
+    pytest.importorskip("yaml")
+    bad_yaml = tmp_path / "bad.yaml"
+    bad_yaml.write_text("robot: [unclosed")
+    with pytest.raises(SettingError, match="not valid YAML"):
+        check_policy(policy, bad_yaml)
     no_type = tmp_path / "no_type.json"
     no_type.write_text(json.dumps({"robot": {"port": "x"}}))
     with pytest.raises(SettingError, match="no robot type"):

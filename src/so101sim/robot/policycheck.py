@@ -81,7 +81,7 @@ def _read_mapping(path: Path, what: str) -> dict[str, Any]:
             data = yaml.safe_load(text)
         else:
             data = json.loads(text)
-    except (ValueError, TypeError) as exc:  # json.JSONDecodeError and yaml.YAMLError
+    except ValueError as exc:  # json.JSONDecodeError
         raise SettingError(
             f"{what} {str(path)!r} cannot be read ({exc}); expected JSON or YAML"
         ) from exc
