@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import MotionFileError, RecordingError
+from .output import _say
 from .studio import add_web_options
 
 SubParsers = Any  # argparse's private _SubParsersAction
@@ -117,6 +118,15 @@ def camera_options(args: argparse.Namespace) -> dict[str, Any]:
     return options
 
 
+RECORD_ARM_HELP = (
+    "the servo model for the script's own model. Default: the script's models as it makes "
+    "them (a scene.xml it compiles itself, as the lab handout does, has the file's ideal "
+    "actuators: official; so101sim's load_model/Simulation: sts3215). --arm sts3215, "
+    "official, sts3215-12v or a TOML file runs the script's model with that profile "
+    "(said once on stderr)"
+)
+
+
 def add_commands(
     sub: SubParsers,
     *,
@@ -127,7 +137,7 @@ def add_commands(
     """Add ``record``, ``workspace``, ``cache`` and ``examples`` to the parser's subcommands."""
     p = sub.add_parser(
         "record",
-        parents=[recording, arm],
+        parents=[recording],  # not `arm`: record's --arm says what it means for a script
         help="run your own simulation script headless and record it to a video",
         description=(
             "Runs SCRIPT unchanged: its mujoco.viewer.launch_passive(m, d) records instead of "
@@ -141,6 +151,7 @@ def add_commands(
     p.add_argument("script", help="the Python script to run (as you run it with python)")
     p.add_argument("-o", "--output", help="the video to write (.mp4); --record PATH says the same")
     p.add_argument("--title", help="a title in the caption and the video's metadata")
+    p.add_argument("--arm", metavar="NAME|FILE", default=None, help=RECORD_ARM_HELP)
     p.add_argument("script_args", nargs="*", help="arguments for the script, after --")
     add_web_options(p)
     p.set_defaults(func=cmd_record)
@@ -178,7 +189,7 @@ def split_script_args(argv: list[str]) -> tuple[list[str], list[str] | None]:
 
 
 def cmd_record(args: argparse.Namespace) -> int:
-    from ..lab.handin import run_script  # imported here: it imports MuJoCo
+    from ..lab.handin import run_script, script_line  # imported here: it imports MuJoCo
     from ..recording import VideoSettings
 
     args.output = record_output(args)
@@ -189,6 +200,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     VideoSettings(**video).validated()  # a bad setting stops before the script runs
     options = {**video, "plot": args.plot, "log": args.log, "force": args.force}
     options["arm"] = args.arm
+    options["say"] = lambda text: _say(f"so101sim record: {text}", err=True)
     if args.web:  # the script live in a browser (cli/studio.py)
         from .studio import record_web
 
@@ -198,16 +210,21 @@ def cmd_record(args: argparse.Namespace) -> int:
     except Exception as exc:
         from ..errors import So101SimError
 
+        where = script_line(exc, args.script)  # the script's file:line, if it came from there
         if isinstance(exc, So101SimError):
-            raise
+            if not where:
+                raise
+            _say(f"so101sim: error: {where}: {exc}", err=True)
+            return 2
         traceback.print_exc()  # the script's own error, as Python shows it
-        print(f"so101sim: {args.script} raised {type(exc).__name__}", file=sys.stderr)
+        print(f"so101sim: {where or args.script} raised {type(exc).__name__}", file=sys.stderr)
         return 1
     if run.message:
         print(run.message, file=sys.stderr)
     for kind, path in run.outputs.items():
         print(f"wrote the {kind} to {path}")
     print(f"{args.script}: {run.simulated_seconds:.3f} s of simulated time")
+    print(f"servo model: {run.servo_model}")
     return run.exit_status
 
 
