@@ -1,8 +1,8 @@
-"""More ``so101sim`` commands: ``record`` (a student's own script to a video), ``workspace``,
-``cache`` and ``examples``, and the camera options every recording command shares
-(:func:`add_camera_options`, :func:`camera_options`). Like :mod:`so101sim.cli`, they only parse
-and print: each calls one library function. Heavy modules are imported inside the commands, to
-keep start-up fast.
+"""More ``so101sim`` commands: ``record`` (a student's own script to a video), ``grade`` (an
+instructor's check of hand-ins), ``workspace``, ``cache`` and ``examples``, and the camera
+options every recording command shares (:func:`add_camera_options`, :func:`camera_options`).
+Like :mod:`so101sim.cli`, they only parse and print: each calls one library function. Heavy
+modules are imported inside the commands, to keep start-up fast.
 """
 
 from __future__ import annotations
@@ -230,7 +230,8 @@ def cmd_record(args: argparse.Namespace) -> int:
 
 def record_output(args: argparse.Namespace) -> str | None:
     """``record``'s video: ``-o PATH`` or ``--record PATH`` (the same option under the name
-    ``run`` and ``hold`` use); one of them is needed, unless ``--web`` shows the script."""
+    ``run`` and ``hold`` use); None (no video) when only a log or a plot is asked for
+    (``--log``, ``--plot``) or ``--web`` shows the script."""
     from ..validation import check_path_text
 
     for name in ("output", "record"):  # an empty name is no path (not "no video")
@@ -242,10 +243,10 @@ def record_output(args: argparse.Namespace) -> str | None:
             "(they are the same option of record)"
         )
     output = args.output or args.record
-    if output is None and not args.web:
+    if output is None and not (args.web or args.log or args.plot):
         raise RecordingError(
-            "record needs the video to write; expected -o VIDEO.mp4 (or --web to show the "
-            "script in a browser)"
+            "record needs something to write; expected -o VIDEO.mp4, --log LOG.csv or --plot "
+            "PLOT.png (or --web to show the script in a browser)"
         )
     return output
 
@@ -288,3 +289,52 @@ def cmd_examples(args: argparse.Namespace) -> int:
         print(path)
     print(f"copied {len(copied)} file(s) to {args.folder}")
     return 0
+
+
+def cmd_grade(args: argparse.Namespace) -> int:
+    """``so101sim grade LOG|FOLDER``: the lab hand-in(s) judged against the lab's spec."""
+    from ..errors import SettingError
+    from ..gl import skip_opengl
+
+    skip_opengl()  # nothing is drawn (the log reader's module imports MuJoCo)
+    import json
+
+    from ..lab.grade import Tolerances, grade_log
+    from ..lab.gradefolder import grade_folder
+    from ..lab.gradereport import (
+        check_summary_path,
+        folder_dict,
+        format_folder,
+        format_grade,
+        grade_dict,
+        write_summary,
+    )
+    from ..validation import checked_path
+
+    tolerances = Tolerances(args.tolerance_deg, args.time_tolerance_s)
+    handin = checked_path(args.handin, "hand-in")  # empty, too long: one line before anything
+    if args.video is not None:
+        checked_path(args.video, "video")
+    if not handin.is_dir():
+        if args.summary is not None:
+            raise SettingError(
+                "--summary writes one row per student of a folder of hand-ins; expected a "
+                f"folder, not {args.handin!r} (or no --summary)"
+            )
+        result = grade_log(args.handin, video=args.video, tolerances=tolerances)
+        print(json.dumps(grade_dict(result), indent=2) if args.json else format_grade(result))
+        return 0 if result.passed else 1
+    if args.video is not None:
+        raise SettingError(
+            "--video goes with one log; in a folder each log's video is found beside it "
+            "(the same name, .mp4)"
+        )
+    if args.summary is not None:
+        check_summary_path(args.summary, force=args.force)  # before anything is graded
+    folder = grade_folder(args.handin, tolerances=tolerances)
+    print(json.dumps(folder_dict(folder), indent=2) if args.json else format_folder(folder))
+    if args.summary is not None:
+        written = write_summary(folder, args.summary, force=args.force)
+        if not args.json:  # the JSON alone on stdout
+            print(f"wrote the summary to {written}")
+    return 0 if folder.passed else 1

@@ -5,7 +5,9 @@ An app layer: may import ``so101sim.preflight``, ``so101sim.recording``, ``so101
 :mod:`.helpers` (``move_to_pose``, ``hold_position``, ...), :mod:`.handin` (``so101sim record``),
 :mod:`.recviewer` (the recording viewer ``record`` returns), :mod:`.arming` (``record --arm``:
 the script's model run with a profile), :mod:`.simclock` (simulated time for scripts),
-:mod:`.starter` (``so101sim examples``).
+:mod:`.starter` (``so101sim examples``), :mod:`.grade` (``so101sim grade``: :mod:`.gradelog`
+reads a log, :mod:`.gradevideo` checks the video, :mod:`.gradefolder` grades a folder,
+:mod:`.gradereport` says it).
 """
 
 from typing import TYPE_CHECKING
