@@ -2,7 +2,8 @@
 
 Modules: :mod:`.follower`,
 :mod:`.config`, :mod:`.actions`, :mod:`.cameras`, :mod:`.threads`, :mod:`.scene`, :mod:`.ee`
-(end-effector actions), :mod:`.helpers`, :mod:`.teleop`, :mod:`.calibration` (the leader's).
+(end-effector actions), :mod:`.helpers`, :mod:`.teleop`, :mod:`.calibration` (the leader's),
+:mod:`.policycheck` (``so101sim policy-check``).
 
 May import: ``so101sim.recording``, ``so101sim.viewer``, ``so101sim.scenes``,
 ``so101sim.motion``, ``so101sim.sim``, ``so101sim.kinematics``, ``so101sim.model``,
