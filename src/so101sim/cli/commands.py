@@ -65,7 +65,8 @@ def cmd_pose(args: argparse.Namespace) -> int:
 def cmd_check(args: argparse.Namespace) -> int:
     import json
 
-    from ..motion.file import lab_motion_path  # imported here: they import MuJoCo
+    from ..model.build import servo_model  # imported here: they import MuJoCo
+    from ..motion.file import lab_motion_path
     from ..preflight.check import Thresholds, check_motion_file, format_report
 
     names = ("max_effort", "max_saturation", "max_tracking_error", "limit_margin")
@@ -82,12 +83,15 @@ def cmd_check(args: argparse.Namespace) -> int:
         report = check_motion_file(
             motion, model=args.model, thresholds=thresholds, strict=args.strict, arm=args.arm
         )
-    # the report names the motion it judged: the file, or the lab motion
+    # the report names the motion it judged (the file, or the lab motion) and the servo
+    # model it ran: the efforts and tracking errors are that model's
+    servos = servo_model(arm=args.arm)
     if args.json:
-        print(json.dumps({"motion": str(motion), **report.to_dict()}, indent=2))
+        named = {"motion": str(motion), "servo_model": servos}
+        print(json.dumps({**named, **report.to_dict()}, indent=2))
     else:
         name = f"the lab motion ({motion})" if args.motion is None else str(motion)
-        print(f"checked {name}\n{format_report(report)}")
+        print(f"checked {name}\nservo model: {servos}\n{format_report(report)}")
     return 0 if report.passed else 1
 
 
