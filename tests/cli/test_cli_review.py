@@ -1,10 +1,17 @@
-"""Found trying issue 29 as a new user: check names the servo model it ran."""
+"""Found trying issue 29 as a new user: check names the servo model it ran, and a closed
+pipe (``so101sim check | head``) ends the command quietly, without a traceback."""
 
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 from so101sim.cli.main import main
+
+SRC = str(Path(__file__).parents[2] / "src")
 
 
 def test_check_names_the_servo_model_it_ran(tmp_path, capsys):
@@ -21,3 +28,17 @@ def test_check_names_the_servo_model_it_ran(tmp_path, capsys):
     report = json.loads(capsys.readouterr().out)
     assert report["servo_model"].startswith("official (")
     assert report["motion"] == str(motion)
+
+
+def test_a_closed_pipe_ends_the_command_without_a_traceback():
+    env = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "so101sim", "model-path"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+    )
+    proc.stdout.close()  # as `| head` does once it has read its lines: the print fails
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141, err  # 128 + SIGPIPE, as a shell reports it
+    assert "Traceback" not in err and "BrokenPipeError" not in err and "Exception" not in err
