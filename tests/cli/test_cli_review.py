@@ -42,3 +42,25 @@ def test_a_closed_pipe_ends_the_command_without_a_traceback():
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=120) == 141, err  # 128 + SIGPIPE, as a shell reports it
     assert "Traceback" not in err and "BrokenPipeError" not in err and "Exception" not in err
+
+
+def test_a_scripts_error_shows_the_scripts_traceback_not_so101sims(tmp_path, capsys):
+    helper = tmp_path / "utils.py"
+    helper.write_text("def angle(pose):\n    return pose['elbow_flex']\n")
+    script = tmp_path / "my_lab.py"
+    script.write_text("from utils import angle\n\nstart = {'elbow_flx': 88.0}\nangle(start)\n")
+    assert main(["record", str(script), "--log", str(tmp_path / "lab.csv")]) == 1
+    err = capsys.readouterr().err
+    lines = err.splitlines()
+    assert lines[0] == "Traceback (most recent call last):"
+    assert lines[1] == f'  File "{script}", line 4, in <module>'  # the script's frame first
+    assert f'File "{helper}", line 2, in angle' in err
+    assert "runpy" not in err and "handin.py" not in err and "cli/tools.py" not in err
+    assert lines[-2] == "KeyError: 'elbow_flex'"
+    assert lines[-1] == f"so101sim: {script}:4 raised KeyError"
+
+    script.write_text("x = (1,\ny = 2)\n")  # a syntax error in the script: no traceback
+    assert main(["record", str(script), "--log", str(tmp_path / "lab.csv")]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and err.startswith(f'  File "{script}", line ')
+    assert err.splitlines()[-2].startswith("SyntaxError: ")
