@@ -64,3 +64,17 @@ def test_a_scripts_error_shows_the_scripts_traceback_not_so101sims(tmp_path, cap
     err = capsys.readouterr().err
     assert "Traceback" not in err and err.startswith(f'  File "{script}", line ')
     assert err.splitlines()[-2].startswith("SyntaxError: ")
+
+
+def test_check_variants_names_the_servo_model_it_perturbs(tmp_path, capsys):
+    motion = tmp_path / "mine.toml"
+    motion.write_text('start = "rest"\n[[steps]]\nhold = 0.1\n')
+    main(["check", str(motion), "--variants", "2", "--threads", "1", "--arm", "official"])
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("robust preflight: 2 variants of ")
+    assert lines[1] == (
+        "servo model: official (the model file's own ideal position actuators)"
+        " (perturbed per variant)"
+    )
+    main(["check", str(motion), "--variants", "2", "--threads", "1", "--json"])
+    assert json.loads(capsys.readouterr().out)["servo_model"].startswith("sts3215 (")

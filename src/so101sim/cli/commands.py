@@ -98,7 +98,8 @@ def cmd_check(args: argparse.Namespace) -> int:
 def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> int:
     import json
 
-    from ..preflight import robust as pv  # imports MuJoCo
+    from ..model.build import servo_model  # imported here: they import MuJoCo
+    from ..preflight import robust as pv
 
     settings = {"model": args.model, "thresholds": thresholds, "strict": args.strict}
     settings["arm"] = args.arm
@@ -116,7 +117,12 @@ def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> i
         report = pv.summarize(job, run_on_ray(job, args.ray))
     if args.plot is not None:
         pv.plot_variants(report, args.plot, force=True)
-    print(json.dumps(report.to_dict(), indent=2) if args.json else pv.format_variants(report))
+    servos = servo_model(arm=args.arm)  # the variants perturb this servo model
+    if args.json:
+        print(json.dumps({"servo_model": servos, **report.to_dict()}, indent=2))
+    else:
+        first, _, rest = pv.format_variants(report).partition("\n")
+        print(f"{first}\nservo model: {servos} (perturbed per variant)\n{rest}")
     if args.plot is not None and not args.json:
         print(f"wrote {args.plot}")
     return 0 if report.passed == len(report.outcomes) else 1
