@@ -132,9 +132,11 @@ def hold_start(m: mujoco.MjModel, d: mujoco.MjData) -> str:
     d.ctrl[idx.actuator] = np.where(limited, np.clip(q, lo, hi), q)
     units = arm_units(m)
     pose = ", ".join(f"{n}={v:.1f}" for n, v in units.array_to_pose(units.from_radians(q)).items())
+    closed = units.from_radians(np.zeros(len(q)))[-1]  # the gripper's qpos 0, in 0-100 units
     return (
         "the script's arm targets (d.ctrl) were all 0 at the start while the arm stands at "
-        f"{pose}: so101sim record commands that starting pose (the arm starts holding it, "
+        f"{pose} (degrees; the gripper on so101sim's 0-100 scale, where qpos 0 is "
+        f"{closed:.1f}): so101sim record commands that starting pose (the arm starts holding it, "
         "rather than lurching toward zero on the first step); set d.ctrl or use "
         "so101sim.lab.set_initial_pose to choose"
     )
