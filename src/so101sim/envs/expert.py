@@ -37,6 +37,7 @@ from .planning import (
     pose_at,
     top_grasp,
 )
+from .reach import ReachExpert, ReachTask
 from .scene_state import SceneState
 from .tasks import CubeToBowlTask, PickCubeTask
 
@@ -231,6 +232,7 @@ class CubeToBowlExpert(ScriptedExpert):
 EXPERTS: dict[type, Callable[[Any], ScriptedExpert]] = {
     PickCubeTask: PickCubeExpert,
     CubeToBowlTask: CubeToBowlExpert,
+    ReachTask: ReachExpert,
 }
 
 
