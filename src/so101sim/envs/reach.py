@@ -9,7 +9,7 @@ thing to avoid (and the randomisation's distractors join it).
 
 Success: the tip within :data:`REACH_SUCCESS_M` of the target. Dense reward: 1 - tanh(10 d)
 for the distance d (metres); 1 on success. The observation's ``environment_state`` is the
-cube's pose (7) followed by the target (x, y, z): 10 numbers.
+cube's pose (7), the target (x, y, z) and the tip's position now (x, y, z): 13 numbers.
 """
 
 from __future__ import annotations
@@ -93,7 +93,7 @@ class ReachEnv(ReachTask, So101TaskEnv):
         space = super()._observation_space()
         if self.object_state:
             box = space["environment_state"]
-            far = np.full(3, MAX_DISTANCE_M, dtype=np.float32)
+            far = np.full(6, MAX_DISTANCE_M, dtype=np.float32)
             space.spaces["environment_state"] = spaces.Box(
                 np.r_[box.low, -far], np.r_[box.high, far], dtype=np.float32
             )
@@ -102,8 +102,8 @@ class ReachEnv(ReachTask, So101TaskEnv):
     def _observation(self) -> dict[str, Any]:
         obs = super()._observation()
         if self.object_state:
-            goal = self.goal.astype(np.float32)
-            obs["environment_state"] = np.r_[obs["environment_state"], goal].astype(np.float32)
+            extra = np.r_[self.goal, self.tip()]
+            obs["environment_state"] = np.r_[obs["environment_state"], extra].astype(np.float32)
         return obs
 
     def reset(
