@@ -31,7 +31,12 @@ import numpy as np
 OBS_KEYS = ("agent_pos", "agent_vel", "environment_state")
 ENV_KWARGS: dict[str, dict[str, Any]] = {
     # a reward per step in 0..1 and no end on success: the policy learns to stay on the goal
-    "reach": {"control": "joint_delta", "control_hz": 10.0, "max_delta": 15.0},
+    "reach": {
+        "control": "joint_delta",
+        "control_hz": 10.0,
+        "max_delta": 20.0,
+        "episode_seconds": 2.5,
+    },
     "pick_cube": {"control": "joint_delta", "control_hz": 10.0, "max_delta": 15.0},
 }
 
