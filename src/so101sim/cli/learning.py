@@ -107,7 +107,7 @@ def add_learning_commands(sub: SubParsers) -> None:
         ),
     )
     p.add_argument("policy", metavar="POLICY_PATH", help="the policy's folder (config.json)")
-    p.add_argument("--task", default="pick_cube", help="pick_cube (default) or cube_to_bowl")
+    p.add_argument("--task", default="pick_cube", help="pick_cube (default), cube_to_bowl or reach")
     p.add_argument("--episodes", type=int, default=10, help="episodes (default 10)")
     p.add_argument("--seed", type=int, default=1000, help="first episode's seed (1000)")
     p.add_argument("--workers", type=int, help="worker processes (default: every core)")

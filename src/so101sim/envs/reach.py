@@ -130,7 +130,7 @@ class ReachExpert:
     def __init__(self, env: Any) -> None:
         self.env = getattr(env, "unwrapped", env)
         self._through_sag = ThroughSag(self.env.model)
-        self.attempts = 1
+        self.attempts = 0  # retries, as the other experts count them (none: one move)
         self.reset()
 
     def reset(self) -> None:
