@@ -49,7 +49,13 @@ NAMESPACE = "so101sim"
 """The Gymnasium namespace of so101sim's environments (``so101sim/PickCube-v0``)."""
 ENV_MODULE = "so101sim.envs"
 """The module whose import registers them (LeRobot imports ``package_name`` if needed)."""
-TASK_SCENES = {"PickCube-v0": "pick_cube", "CubeToBowl-v0": "cube_to_bowl", "Reach-v0": "pick_cube"}
+TASK_SCENES = {
+    "PickCube-v0": "pick_cube",
+    "CubeToBowl-v0": "cube_to_bowl",
+    "Reach-v0": "pick_cube",
+    "LiftCylinder-v0": "lift_cylinder",
+    "LiftSphere-v0": "lift_sphere",
+}
 """Each task (``--env.task``) and the scene preset it is played in."""
 TASK_EXTRA_STATE = {"Reach-v0": 6}
 """Numbers a task's ``environment_state`` holds after the objects' poses (reach: the target
@@ -327,6 +333,22 @@ class SO101SimReachEnv(SO101SimEnvConfig):
     task: str | None = "Reach-v0"
 
 
+@EnvConfig.register_subclass("so101sim_lift_cylinder")
+@dataclass
+class SO101SimLiftCylinderEnv(SO101SimEnvConfig):
+    """Lift the cylinder (``so101sim/LiftCylinder-v0``, 8 s)."""
+
+    task: str | None = "LiftCylinder-v0"
+
+
+@EnvConfig.register_subclass("so101sim_lift_sphere")
+@dataclass
+class SO101SimLiftSphereEnv(SO101SimEnvConfig):
+    """Lift the ball (``so101sim/LiftSphere-v0``, 8 s)."""
+
+    task: str | None = "LiftSphere-v0"
+
+
 __all__ = [
     "ENV_MODULE",
     "NAMESPACE",
@@ -334,6 +356,8 @@ __all__ = [
     "TASK_SCENES",
     "SO101SimCubeToBowlEnv",
     "SO101SimEnvConfig",
+    "SO101SimLiftCylinderEnv",
+    "SO101SimLiftSphereEnv",
     "SO101SimPickCubeEnv",
     "SO101SimReachEnv",
     "state_size",

@@ -20,7 +20,7 @@ def add_demo_command(sub: SubParsers, *, arm: argparse.ArgumentParser) -> None:
     p = sub.add_parser(
         "demo",
         parents=[arm],
-        help="run a task's scripted expert once (pick_cube, cube_to_bowl, reach) or record it",
+        help="run a task's scripted expert once (see so101sim.envs.TASKS) or record it",
         description=(
             "Runs the scripted expert of TASK for one episode from the start poses drawn from "
             "--seed: in MuJoCo's viewer when there is a display (unless --headless), and with "
@@ -29,7 +29,9 @@ def add_demo_command(sub: SubParsers, *, arm: argparse.ArgumentParser) -> None:
             "status 0 on success, 1 when the task failed, 2 on a bad setting."
         ),
     )
-    p.add_argument("task", help="the task: pick_cube, cube_to_bowl or reach")
+    p.add_argument(
+        "task", help="the task: pick_cube, cube_to_bowl, reach, lift_cylinder or lift_sphere"
+    )
     p.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
     p.add_argument(
         "--headless", action="store_true", help="run without the viewer, even with a display"
@@ -55,6 +57,8 @@ def format_figures(figures: dict[str, float]) -> str:
     parts = []
     if "cube_rise_m" in figures:
         parts.append(f"cube lifted {figures['cube_rise_m'] * 1000:.1f} mm")
+    if "object_rise_m" in figures:
+        parts.append(f"object lifted {figures['object_rise_m'] * 1000:.1f} mm")
     if "cube_to_bowl_m" in figures:
         where = "in the bowl" if figures.get("in_bowl") else "not in the bowl"
         parts.append(

@@ -5,7 +5,8 @@ Importing this package registers the environments with Gymnasium:
 
 * ``so101sim/PickCube-v0`` (:class:`PickCubeEnv`): pick up a 2.5 cm cube;
 * ``so101sim/CubeToBowl-v0`` (:class:`CubeToBowlEnv`): put the cube in a bowl;
-* ``so101sim/Reach-v0`` (:class:`ReachEnv`): bring the tip to a target point.
+* ``so101sim/Reach-v0`` (:class:`ReachEnv`): bring the tip to a target point;
+* ``so101sim/LiftCylinder-v0``, ``so101sim/LiftSphere-v0``: lift a cylinder, a ball.
 
 :func:`make_vec` makes N worlds of a task stepped together on every core (:mod:`.vector`).
 
@@ -43,6 +44,8 @@ from .tasks import (
     SIM_TASKS,
     CubeToBowlEnv,
     CubeToBowlTask,
+    LiftCylinderEnv,
+    LiftSphereEnv,
     PickCubeEnv,
     PickCubeTask,
     sim_task,
@@ -53,6 +56,8 @@ ENTRY_POINTS = {
     "so101sim/PickCube-v0": "so101sim.envs.tasks:PickCubeEnv",
     "so101sim/CubeToBowl-v0": "so101sim.envs.tasks:CubeToBowlEnv",
     "so101sim/Reach-v0": "so101sim.envs.reach:ReachEnv",
+    "so101sim/LiftCylinder-v0": "so101sim.envs.tasks:LiftCylinderEnv",
+    "so101sim/LiftSphere-v0": "so101sim.envs.tasks:LiftSphereEnv",
 }
 
 
@@ -83,6 +88,8 @@ __all__ = [
     "Evaluation",
     "ExpertFrames",
     "ExpertScore",
+    "LiftCylinderEnv",
+    "LiftSphereEnv",
     "PickCubeEnv",
     "PickCubeExpert",
     "PickCubeTask",
