@@ -141,16 +141,37 @@ class So101VectorEnv(VectorEnv):
         terminated = np.zeros(self.num_envs, dtype=bool)
         truncated = np.zeros(self.num_envs, dtype=bool)
         infos: dict[str, Any] = {}
-        observations = []
+        observations, step_infos = [], []
         for i, env in enumerate(self.envs):
             obs, rewards[i], terminated[i], truncated[i], info = env._finish_step()
             if terminated[i] or truncated[i]:
                 infos = self._add_info(infos, {"final_obs": obs, "final_info": info}, i)
                 obs, info = env.reset()
             observations.append(obs)
-            infos = self._add_info(infos, info, i)
+            step_infos.append(info)
+        infos = self._stack_infos(infos, step_infos)
         self._obs = concatenate(self.single_observation_space, observations, self._obs)
         return deepcopy(self._obs), rewards, terminated, truncated, infos
+
+    def _stack_infos(self, infos: dict[str, Any], each: list[dict[str, Any]]) -> dict[str, Any]:
+        """Every world's ``info`` stacked as ``_add_info`` stacks it, the keys every world has
+        with plain numbers at once (one array per key, not one call per world)."""
+        every = np.ones(self.num_envs, dtype=bool)
+        keys = set(each[0])
+        if all(set(info) == keys for info in each):
+            plain = [
+                k for k in each[0] if type(each[0][k]) in (bool, int, float) and k not in infos
+            ]
+            for k in plain:
+                infos[k] = np.array([info[k] for info in each], dtype=type(each[0][k]))
+                infos[f"_{k}"] = every.copy()
+            rest = [{k: v for k, v in info.items() if k not in plain} for info in each]
+        else:
+            rest = each
+        for i, info in enumerate(rest):
+            if info:
+                infos = self._add_info(infos, info, i)
+        return infos
 
     def render(self) -> tuple[np.ndarray, ...] | None:
         """Each world's frame (``render_mode="rgb_array"``), else None."""
