@@ -40,10 +40,36 @@ ENV_KWARGS: dict[str, dict[str, Any]] = {
         "max_delta": 20.0,
         "episode_seconds": 2.5,
     },
-    "pick_cube": {"control": "joint_delta", "control_hz": 10.0, "max_delta": 15.0},
+    # the tip and the gripper (4 numbers), the tool's pitch (-50 degrees at the start pose)
+    # and roll held; 5 s episodes
+    "pick_cube": {"control": "ee_delta", "control_hz": 10.0, "episode_seconds": 5.0},
 }
 TASK_OF = {"reach_joint": "reach"}
 """Recipes on another recipe's task (the same task, other settings)."""
+POSITION_ONLY = {"reach"}
+"""Recipes whose policy moves the tip only (dx, dy, dz: ``ee_delta``'s first three), the
+tool's pitch, roll and the gripper held (0, 0, closed): what a reach needs, as ManiSkill's
+``pd_ee_delta_pos``."""
+
+
+POSITION_GRIPPER = {"pick_cube"}
+"""Recipes whose policy moves the tip and sets the gripper (4 numbers)."""
+
+
+def action_size(recipe: str, full: int) -> int:
+    return 3 if recipe in POSITION_ONLY else 4 if recipe in POSITION_GRIPPER else full
+
+
+def full_action(recipe: str, a: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """The environment's actions (n, 6) for the policy's (n, k) in -1..1."""
+    a = np.clip(a, -1.0, 1.0)
+    if recipe in POSITION_ONLY or recipe in POSITION_GRIPPER:
+        out = np.zeros((len(a), len(low)))
+        out[:, :3] = low[:3] + (a[:, :3] + 1.0) * 0.5 * (high[:3] - low[:3])
+        if recipe in POSITION_GRIPPER:
+            out[:, 5] = low[5] + (a[:, 3] + 1.0) * 0.5 * (high[5] - low[5])
+        return out
+    return low + (a + 1.0) * 0.5 * (high - low)
 
 
 def flatten(obs: dict[str, np.ndarray]) -> np.ndarray:
@@ -79,7 +105,8 @@ def make_venv(task: str, num_envs: int, seed: int, nthread: int | None) -> Any:
             obs_space = spaces.Box(-np.inf, np.inf, (size,), dtype=np.float32)
             act = self.venv.single_action_space
             self.low, self.high = act.low, act.high
-            act_space = spaces.Box(-1.0, 1.0, act.shape, dtype=np.float32)
+            dims = action_size(task, act.shape[0])
+            act_space = spaces.Box(-1.0, 1.0, (dims,), dtype=np.float32)
             super().__init__(num_envs, obs_space, act_space)
             self._seed = seed
             self._actions: np.ndarray | None = None
@@ -93,8 +120,7 @@ def make_venv(task: str, num_envs: int, seed: int, nthread: int | None) -> Any:
             return flatten(obs)
 
         def step_async(self, actions: np.ndarray) -> None:
-            a = np.clip(actions, -1.0, 1.0)
-            self._actions = self.low + (a + 1.0) * 0.5 * (self.high - self.low)
+            self._actions = full_action(task, actions, self.low, self.high)
 
         def step_wait(self) -> tuple:
             obs, rew, term, trunc, info = self.venv.step(self._actions)
@@ -151,7 +177,7 @@ def evaluate(task: str, model: Any, norm: Any, episodes: int, video: Path | None
         while not done:
             x = norm.normalize_obs(flatten({k: obs[k][None] for k in OBS_KEYS}))
             a, _ = model.predict(x, deterministic=True)
-            a = act.low + (np.clip(a[0], -1, 1) + 1.0) * 0.5 * (act.high - act.low)
+            a = full_action(task, a, act.low, act.high)[0]
             obs, _, term, trunc, info = env.step(a)
             ever |= bool(info["is_success"])
             done = term or trunc
