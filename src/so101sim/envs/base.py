@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import gymnasium as gym
+import mujoco
 import numpy as np
 
 from ..errors import ClosedError, SettingError, ViewerError
@@ -109,6 +110,7 @@ class So101TaskEnv(Observations, SceneState, gym.Env):
         initial_pose: Pose | None = None,
         randomize: str | Randomization | dict[str, Any] | None = None,
         arm: str | Path | None = None,
+        shared_model: mujoco.MjModel | None = None,
     ) -> None:
         if render_mode is not None:
             check_choice(render_mode, "render mode", RENDER_MODES)
@@ -139,8 +141,12 @@ class So101TaskEnv(Observations, SceneState, gym.Env):
         self.arm = load_profile(arm)  # the servos' model: name, TOML file or None (default)
         self.scene = preset_scene(self.scene_name, cameras=self._camera_specs())
         self.randomize = randomization(randomize)
-        self.model = build_scene(self.scene, arm=self.arm, extra=scene_additions(self.randomize))
-        limit_gripper(self.model, fraction, self.arm)
+        if shared_model is None:
+            extra = scene_additions(self.randomize)
+            self.model = build_scene(self.scene, arm=self.arm, extra=extra)
+            limit_gripper(self.model, fraction, self.arm)
+        else:  # make_vec's worlds: one compiled model (built with these settings) for all
+            self.model = shared_model
         self.sim = Simulation(self.model, initial_pose=initial_pose or STARTING_POSE)
         self._period_steps = 1.0 / (hz * self.sim.timestep)  # physics steps per env step
         self.substeps = max(1, round(self._period_steps))  # nominal (exact at 25 Hz)

@@ -51,10 +51,13 @@ class So101VectorEnv(VectorEnv):
             raise SettingError(
                 "render_mode='human' in a vector environment; expected None or 'rgb_array'"
             )
-        self.envs: list[So101TaskEnv] = [
-            make(task, **env_kwargs).unwrapped for _ in range(self.num_envs)
-        ]
-        first = self.envs[0]
+        first: So101TaskEnv = make(task, **env_kwargs).unwrapped
+        # one compiled model for every world unless a draw changes it per world (the physics'
+        # or the look's randomisation): 64 copies of it do not fit in the caches, one does
+        shared = not first.randomize.active and not first.jitter.active
+        more = {**env_kwargs, "shared_model": first.model} if shared else env_kwargs
+        self.envs = [first, *(make(task, **more).unwrapped for _ in range(self.num_envs - 1))]
+        self.shared_model = shared
         self.task = task
         self.render_mode = first.render_mode
         self.metadata = {
