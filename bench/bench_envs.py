@@ -141,7 +141,7 @@ def speed(repeats: int) -> None:
 
 def time_batched(actions: list[np.ndarray], worlds: int, physics_only: bool) -> float:
     """``make_vec`` of ``worlds`` worlds, every world replaying the actions (or, physics
-    only, its BatchStepper alone stepping the same targets: what the Python of an env step
+    only, its WorldStepper alone stepping the same targets: what the Python of an env step
     costs is the difference)."""
     venv = make_vec("pick_cube", worlds, terminate_on_success=False, episode_seconds=3600.0)
     venv.reset(seed=0)
@@ -171,7 +171,7 @@ def batched(repeats: int, worlds: int) -> None:
     cores = default_threads()
     runs = {
         "raw mj_step(nstep=20), one thread": (lambda: time_raw(actions), 1),
-        f"BatchStepper, {worlds} worlds (physics only)": (
+        f"WorldStepper, {worlds} worlds (physics only)": (
             lambda: time_batched(actions, worlds, True),
             worlds,
         ),

@@ -230,3 +230,52 @@ def test_unknown_old_paths_still_fail():
     for name in ("so101sim.nope", "so101sim.robot_nope", "so101sim.sim.nope"):
         with pytest.raises(ModuleNotFoundError):
             importlib.import_module(name)
+
+
+# The stepping kernel's modules: the only ones that may call MuJoCo's stepping functions
+# (docs/architecture.md: "nothing else in so101sim calls mj_step or mujoco.rollout").
+KERNEL = {"sim.stepping", "sim.batched"}  # batched: make_vec's worlds (issue 33)
+_STEP_NAMES = {"mj_step", "mj_step1", "mj_step2", "rollout", "Rollout"}
+
+
+def _stepping_calls(tree: ast.AST) -> list[tuple[int, str]]:
+    """``(line, name)`` of each call of a MuJoCo stepping function (``mujoco.mj_step``,
+    ``rollout.rollout``, ``pool.rollout``, ``Rollout(...)``) and each import of
+    ``mujoco.rollout`` in ``tree``."""
+    hits = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            f = node.func
+            name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", "")
+            if name in _STEP_NAMES:
+                hits.append((node.lineno, name))
+        elif isinstance(node, ast.ImportFrom) and node.module and "mujoco" in node.module:
+            if node.module == "mujoco.rollout" or any(a.name == "rollout" for a in node.names):
+                hits.append((node.lineno, "import mujoco.rollout"))
+        elif isinstance(node, ast.Import) and any(a.name == "mujoco.rollout" for a in node.names):
+            hits.append((node.lineno, "import mujoco.rollout"))
+    return hits
+
+
+def test_only_the_stepping_kernel_steps_mujoco():
+    outside = [
+        f"{name}:{line} {call}"
+        for name, path in _modules().items()
+        if name not in KERNEL
+        for line, call in _stepping_calls(ast.parse(path.read_text(encoding="utf-8")))
+    ]
+    assert not outside, (
+        f"MuJoCo stepped outside the kernel ({', '.join(sorted(KERNEL))}): {outside}"
+    )
+
+
+def test_the_stepping_site_check_finds_each_kind_of_call():
+    code = (
+        "import mujoco\nfrom mujoco import rollout\nimport mujoco.rollout\n"
+        "mujoco.mj_step(m, d, nstep=2)\nrollout.rollout(ms, ds, s, c)\npool.rollout(ms, ds, s, c)\n"
+        "mujoco.mj_step1(m, d)\nx = mujoco.mj_forward(m, d)\n"
+    )
+    found = [c for _, c in _stepping_calls(ast.parse(code))]
+    assert found.count("import mujoco.rollout") == 2
+    assert found.count("rollout") == 2 and "mj_step" in found and "mj_step1" in found
+    assert "mj_forward" not in found

@@ -14,7 +14,7 @@ from gymnasium.wrappers.vector import RecordEpisodeStatistics
 
 from so101sim.envs import ReachEnv, evaluate_expert, make, make_vec
 from so101sim.errors import ClosedError, MissingDependencyError, SettingError
-from so101sim.sim.batched import BatchStepper
+from so101sim.sim.batched import WorldStepper
 
 
 def _same(a: dict, b: dict) -> bool:
@@ -119,7 +119,7 @@ def test_batch_stepper_matches_mj_step_and_checks_divergence():
     ref = [mujoco.MjData(m) for _ in range(3)]
     for i, (d, r) in enumerate(zip(datas, ref, strict=True)):
         d.ctrl[:] = r.ctrl[:] = 0.1 * i
-    with BatchStepper([m] * 3, datas, nthread=2) as stepper:
+    with WorldStepper([m] * 3, datas, nthread=2) as stepper:
         stepper.advance([5, 0, 17])
         for r, k in zip(ref, [5, 0, 17], strict=True):
             if k:

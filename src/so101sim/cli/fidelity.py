@@ -51,14 +51,26 @@ def add_parsers(sub: SubParsers) -> None:
     _common(p)
     p.add_argument(
         "--holdout",
-        type=int,
-        help="episodes (the last ones) kept out of the fit (default 1 if there are 2 or more)",
+        metavar="EPISODES",
+        help="episodes kept out of the fit and predicted, e.g. 2-3 (default: the last one, if "
+        "there are 2 or more); never frames of a fitted episode",
     )
     p.add_argument(
         "--iterations", type=int, default=30, help="solver evaluations at most (default 30)"
     )
+    p.add_argument(
+        "--calibration-only",
+        action="store_true",
+        help="keep --arm's servos and delay; fit only each body joint's calibration (scale and "
+        "offset) of a range-mode recording without LeRobot's calibration JSON",
+    )
     p.add_argument("--threads", type=int, help="threads for the rollouts (default: the cores)")
-    p.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="overwrite an existing output file; write a profile that predicts the held-out "
+        "episodes worse than the default profile",
+    )
     p.set_defaults(func=cmd_fit)
 
 
@@ -68,6 +80,11 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--calibration",
         help="LeRobot calibration JSON of the follower, for a range-mode (-100..100) dataset",
+    )
+    p.add_argument(
+        "--robot-id",
+        help="the follower's LeRobot id (--robot.id): its calibration JSON is read from "
+        "LeRobot's folder ($HF_LEROBOT_CALIBRATION/robots/so_follower/<id>.json)",
     )
     p.add_argument(
         "--units",
@@ -99,6 +116,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         model=args.model,
         keep_traces=args.plot is not None,
         units=args.units,
+        robot_id=args.robot_id,
     )
     for w in result.warnings:
         _warn(w)
@@ -111,18 +129,34 @@ def cmd_compare(args: argparse.Namespace) -> int:
         f"{result.frames} frames at {result.fps:g} fps, episodes {_eps(result.episodes)}, "
         f"arm profile {result.profile}"
     )
-    print(f"{'joint':<15}{'sim mae':>9}{'rms':>8}{'max':>8}{'lag s':>8}{'command mae':>13}")
+    print(
+        f"{'joint':<15}{'sim mae':>9}{'rms':>8}{'max':>8}{'lag s':>8}{'command mae':>13}"
+        f"{'holds':>8}{'moves':>8}"
+    )
     for name, e in result.joints.items():
         base = result.command_baseline[name]
-        print(f"{name:<15}{e.mae:>9.2f}{e.rms:>8.2f}{e.max:>8.2f}{e.lag_s:>8.3f}{base:>13.2f}")
+        split = f"{_cell(result.holds.get(name))}{_cell(result.moves.get(name))}"
+        print(
+            f"{name:<15}{e.mae:>9.2f}{e.rms:>8.2f}{e.max:>8.2f}{e.lag_s:>8.3f}{base:>13.2f}{split}"
+        )
     better = sum(e.mae < result.command_baseline[n] for n, e in result.joints.items())
     print(
         f"(degrees; gripper 0-100) the sim is closer to the real arm than the commands on "
         f"{better} of {len(result.joints)} joints"
     )
+    print("holds: sim mae while the joint's command holds still; moves: while it moves")
+    for w in result.worst:
+        print(
+            f"worst window: episode {w.episode}, {w.t0:.2f}-{w.t1:.2f} s, body mae "
+            f"{w.mae:.2f} deg, worst joint {w.joint}"
+        )
     if args.plot is not None:
-        print(f"wrote {args.plot}")
+        print(f"wrote {args.plot} (the worst windows shaded)")
     return 0
+
+
+def _cell(v: float | None) -> str:
+    return f"{v:>8.2f}" if v is not None and v == v else f"{'-':>8}"
 
 
 def _eps(eps: list[int]) -> str:
@@ -130,20 +164,32 @@ def _eps(eps: list[int]) -> str:
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
+    from ..errors import SettingError
     from ..fidelity.fit import fit
+    from ..fidelity.fitparams import body_mean
     from ..fidelity.logs import parse_episodes
     from ..model.arm import profile_toml
     from ..recording.paths import check_output_path, write_atomically
 
     out = check_output_path(args.output, force=args.force, what="profile", suffixes=(".toml",))
     episodes = parse_episodes(args.episodes) if args.episodes is not None else None
+    holdout = parse_episodes(args.holdout) if args.holdout is not None else None
+    if episodes is not None and holdout is not None:
+        missing = [h for h in holdout if h not in episodes]
+        if missing:
+            raise SettingError(
+                f"--holdout {args.holdout} names episode {missing[0]}, which --episodes "
+                f"{args.episodes} leaves out; expected held-out episodes among those read"
+            )
     result = fit(
         args.logs,
         arm=args.arm,
         episodes=episodes,
         calibration=args.calibration,
         units=args.units,
-        holdout=args.holdout,
+        holdout=holdout,
+        robot_id=args.robot_id,
+        **_only_calibration(args.calibration_only),
         max_evaluations=args.iterations,
         threads=args.threads,
         model=args.model,
@@ -157,11 +203,27 @@ def cmd_fit(args: argparse.Namespace) -> int:
         )
         print(f"{'all (shared)' if joint == '*' else joint:<15}{cells}")
     _errors("fitted episodes", result.start_fit_error, result.fit_error)
+    if result.gripper_blocked_frames:
+        _warn(
+            f"the real gripper is blocked (stalled on an object) in "
+            f"{result.gripper_blocked_frames} frames: left out of the gripper's error"
+        )
     if result.heldout_error is not None and result.start_heldout_error is not None:
-        print(f"held-out episodes {_eps(result.heldout_episodes)}:")
-        _errors("held-out episodes", result.start_heldout_error, result.heldout_error)
+        _heldout_table(result)
     else:
         _warn("no episode held out (one episode): the error on unseen motion is not measured")
+    if result.worse_than_default and not args.force:
+        print(
+            f"so101sim: error: REFUSED: the fitted profile predicts the held-out episodes "
+            f"{_eps(result.heldout_episodes)} WORSE than the default profile "
+            f"({body_mean(result.heldout_error or {}):.2f} deg against "
+            f"{body_mean(result.default_heldout_error or {}):.2f}, body joints); {out} was NOT "
+            "written (more or more varied episodes may help; --force writes it anyway)",
+            file=sys.stderr,
+        )
+        return 1
+    if result.worse_than_default:
+        _warn("the fitted profile is worse than the default on the held-out episodes (--force)")
     comment = (
         f"so101sim fit of {', '.join(map(str, args.logs))}\n"
         f"episodes fitted {_eps(result.fit_episodes)}, held out {_eps(result.heldout_episodes)}"
@@ -170,6 +232,34 @@ def cmd_fit(args: argparse.Namespace) -> int:
     write_atomically(out, lambda p: p.write_text(text, encoding="utf-8"), "profile")
     print(f"wrote {out} (use it with --arm {out})")
     return 0
+
+
+def _only_calibration(only: bool) -> dict:
+    """fit()'s settings for --calibration-only: no servo field, no delay, the calibration."""
+    if not only:
+        return {}
+    body = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
+    return {"names": (), "joints": body, "fit_delay": False}  # calibration: when not given
+
+
+def _heldout_table(result) -> None:
+    from ..fidelity.fitparams import body_mean  # lazy: MuJoCo only when the command runs
+
+    cols = {
+        "fitted": result.heldout_error,
+        "start": result.start_heldout_error,
+        "default": result.default_heldout_error,
+        "commands": result.command_heldout_error,
+    }
+    cols = {k: v for k, v in cols.items() if v is not None}
+    print(
+        f"held-out episodes {_eps(result.heldout_episodes)}: mean |sim - real| (deg; gripper "
+        "0-100); commands: the arm reaching every command"
+    )
+    print(f"    {'joint':<15}" + "".join(f"{k:>10}" for k in cols))
+    for name in result.heldout_error:
+        print(f"    {name:<15}" + "".join(f"{v[name]:>10.2f}" for v in cols.values()))
+    print(f"    {'body joints':<15}" + "".join(f"{body_mean(v):>10.2f}" for v in cols.values()))
 
 
 def _names(values: dict[str, dict[str, float]]) -> list[str]:

@@ -41,10 +41,13 @@ def plugin_module(command: str) -> Any:
 
 
 def _size(text: str) -> tuple[int, int]:
+    """``WIDTHxHEIGHT`` (as cameras are sized: 640x480) as (height, width)."""
     try:
-        h, w = (int(v) for v in text.lower().split("x"))
+        w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected HEIGHTxWIDTH, e.g. 96x96") from None
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected WIDTHxHEIGHT in pixels, e.g. 160x120"
+        ) from None
     return h, w
 
 
@@ -81,11 +84,23 @@ def add_learning_commands(sub: SubParsers) -> None:
     p.add_argument(
         "--cameras", type=_cameras, default=(), help="comma-separated: front,wrist (none)"
     )
-    p.add_argument("--image-size", type=_size, default=(96, 96), help="HxW (default 96x96)")
+    p.add_argument(
+        "--image-size",
+        type=_size,
+        default=(96, 96),
+        help="WIDTHxHEIGHT of the recorded images (default 96x96; a size your camera delivers, "
+        "e.g. 160x120 for a 4:3 camera)",
+    )
     p.add_argument(
         "--environment-state",
         action="store_true",
         help="also write observation.environment_state (the objects' poses)",
+    )
+    p.add_argument(
+        "--no-video",
+        action="store_true",
+        help="store the images as PNG frames in the data files, not as AV1 videos (larger, and "
+        "slower to train ACT on: LeRobot decodes every row of an action chunk's images)",
     )
     p.add_argument("--randomize", default="none", help=RANDOMIZE_HELP)
     p.add_argument(
@@ -103,7 +118,7 @@ def add_learning_commands(sub: SubParsers) -> None:
             "Runs N episodes of the policy saved at POLICY_PATH (lerobot-train's "
             ".../pretrained_model) on TASK in worker processes, the environment matching the "
             "policy's inputs, episode k from seed --seed + k; prints the success rate with its "
-            "95 %% (Wilson) interval and the time to success, writes eval.json and a video of "
+            "95 % (Wilson) interval and the time to success, writes eval.json and a video of "
             "each failure under --output. Needs lerobot_env_so101sim installed."
         ),
     )
@@ -122,6 +137,25 @@ def add_learning_commands(sub: SubParsers) -> None:
     p.add_argument("--device", default="cpu", help="torch device (cpu)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_eval)
+
+    p = sub.add_parser(
+        "policy-check",
+        help="will a trained policy run on a real robot's LeRobot config? (one line per mismatch)",
+        description=(
+            "Reads the inputs of the policy saved at POLICY_PATH (lerobot-train's "
+            ".../pretrained_model: config.json, train_config.json and, when it is here, the "
+            "training dataset's meta) and a robot config (the JSON or YAML that lerobot-record "
+            "--config_path takes, or its robot section alone) and prints one line per "
+            "mismatch: a camera the policy reads that the robot lacks, a resolution, the "
+            "state's size or names, degrees against range mode, a frame rate. Exit status 0: "
+            "none; 1: mismatches; 2: a file could not be read. Needs no LeRobot."
+        ),
+    )
+    p.add_argument("policy", metavar="POLICY_PATH", help="the policy's folder (config.json)")
+    p.add_argument(
+        "--robot-config", required=True, metavar="FILE", help="the robot's config (JSON/YAML)"
+    )
+    p.set_defaults(func=cmd_policy_check)
 
 
 def _workers(value: int | None) -> int:
@@ -148,6 +182,7 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         after_success_s=args.after_success,
         workers=_workers(args.workers),
         use_ray=args.ray,
+        video=not args.no_video,
     )
     bar = tqdm(total=args.episodes, unit="episode", disable=args.no_progress, file=sys.stderr)
 
@@ -209,6 +244,21 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if videos:
         print(f"videos of {len(videos)} failure(s) in {videos[0].rsplit('/', 1)[0]}")
     return 0
+
+
+def cmd_policy_check(args: argparse.Namespace) -> int:
+    from ..robot.policycheck import check_policy
+
+    result = check_policy(args.policy, args.robot_config)
+    for finding in result.mismatches:
+        print(f"{finding.what}: {finding.message}")
+    for note in result.notes:
+        print(f"note: {note}")
+    if result.ok:
+        print(f"OK: {args.policy} reads nothing {args.robot_config} does not deliver")
+        return 0
+    print(f"{len(result.mismatches)} mismatch(es): the policy would not see what it was trained on")
+    return 1
 
 
 __all__ = ["PLUGINS", "add_learning_commands", "plugin_module"]

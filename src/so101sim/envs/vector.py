@@ -1,5 +1,5 @@
 """Many worlds at once: :func:`make_vec` gives a Gymnasium ``VectorEnv`` of N copies of a task
-whose physics is stepped together, in C, on every core (:class:`so101sim.sim.batched.BatchStepper`).
+whose physics is stepped together, in C, on every core (:class:`so101sim.sim.batched.WorldStepper`).
 
 Each world is a whole :class:`~so101sim.envs.So101TaskEnv` (its own compiled scene, arm
 profile and randomisation, seeded on its own), so the observations, actions, rewards and
@@ -26,7 +26,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
 from ..errors import ClosedError, SettingError
-from ..sim.batched import BatchStepper
+from ..sim.batched import WorldStepper
 from ..validation import check_choice, check_count
 from .base import So101TaskEnv
 from .run import make
@@ -70,7 +70,7 @@ class So101VectorEnv(VectorEnv):
         self.single_action_space = first.action_space
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self._stepper = BatchStepper(
+        self._stepper = WorldStepper(
             [e.model for e in self.envs], [e.sim.data for e in self.envs], nthread
         )
         self._obs = create_empty_array(self.single_observation_space, self.num_envs)

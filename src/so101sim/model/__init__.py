@@ -5,7 +5,10 @@ Modules: :mod:`.load` (``load_model``, ``scene_path``, the arm's units and indic
 :mod:`.cache` (compiled models kept between runs), :mod:`.trim` (the physics-only model),
 :mod:`.twin` (a loaded model with a contact sensor, for the stepping kernel's contact counts),
 :mod:`.build` (the one model builder: ``ModelRecipe``, ``build``, ``servo_model``),
-:mod:`.index` (the shipped files, where the joints live), :mod:`.arm` (arm profiles).
+:mod:`.index` (the shipped files, where the joints live); the arm profiles (:mod:`.arm`, their
+public names, over :mod:`.servo` (the data), :mod:`.profiles` (TOML in and out), :mod:`.apply`
+(applied to an ``MjSpec`` at load), :mod:`.runtime` (writes into a compiled model) and
+:mod:`.draw` (draws from their uncertainty)).
 """
 
 from .build import servo_model

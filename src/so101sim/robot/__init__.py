@@ -4,7 +4,8 @@ An app layer: may import the output layers (``so101sim.recording``, ``so101sim.v
 ``so101sim.scenes``), ``so101sim.sim``, ``so101sim.kinematics``, ``so101sim.model`` and the base
 modules; never LeRobot itself (the plugins in ``plugins/`` wrap it). Modules: :mod:`.follower`,
 :mod:`.config`, :mod:`.actions`, :mod:`.cameras`, :mod:`.threads`, :mod:`.scene`, :mod:`.ee`
-(end-effector actions), :mod:`.helpers`, :mod:`.teleop`, :mod:`.calibration` (the leader's).
+(end-effector actions), :mod:`.helpers`, :mod:`.teleop`, :mod:`.calibration` (the leader's),
+:mod:`.policycheck` (``so101sim policy-check``).
 """
 
 from .follower import (

@@ -1,7 +1,7 @@
 """The stepping kernel's batched entry: N worlds (each its own ``MjModel`` and ``MjData``)
 stepped together, in C, on several cores.
 
-:class:`BatchStepper` steps world ``i`` ``n[i]`` times holding its ``d.ctrl``, as
+:class:`WorldStepper` steps world ``i`` ``n[i]`` times holding its ``d.ctrl``, as
 :func:`so101sim.sim.stepping.advance_unobserved` steps one world (``mj_step(nstep)``), and
 bit for bit the same physics: each world goes through ``mujoco.rollout`` on its own
 ``MjData``, from its whole state and warm start, so the data ends holding that world's last
@@ -70,7 +70,7 @@ class _World:
             self.sensors = np.empty((1, n, m.nsensordata))
 
 
-class BatchStepper:
+class WorldStepper:
     """Steps N worlds together (see the module's text). ``models`` and ``datas``: one of each
     per world (a model may be shared); ``nthread``: worker threads (default: the cores this
     process may use; at most one per world). Close it (or use ``with``) to stop the threads.
@@ -149,7 +149,7 @@ class BatchStepper:
             ClosedError: the stepper was closed, or the interpreter is exiting.
         """
         if self._closed:
-            raise ClosedError("advance() on a closed BatchStepper; expected an open one")
+            raise ClosedError("advance() on a closed WorldStepper; expected an open one")
         counts = np.broadcast_to(np.asarray(steps, dtype=np.int64), (self.num_worlds,))
         with mujoco_call():  # refused once the interpreter exits (exitgate)
             if self._pool is None:
@@ -179,11 +179,11 @@ class BatchStepper:
             self._pool.shutdown(wait=True)
             self._pool = None
 
-    def __enter__(self) -> BatchStepper:
+    def __enter__(self) -> WorldStepper:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
 
 
-__all__ = ["MAX_THREADS", "BatchStepper", "default_threads"]
+__all__ = ["MAX_THREADS", "WorldStepper", "default_threads"]

@@ -34,7 +34,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout as _rollout
 
-from ..errors import SimulationDivergedError
+from ..errors import ModelError, SimulationDivergedError
 from ..exitgate import mujoco_call
 from ..model.load import arm_index
 from ..model.twin import Twin, contact_twin
@@ -281,8 +281,17 @@ def step_block(
                 states = _step_block(m, d, ctrl_full, s0, None)
             else:
                 states = _step_twin(m, d, twin, ctrl_full, s0, contact_counts, actuator_forces)
-        _check_divergence(m, d, states, s0, 1 + arm_index(m).qpos, advice)
+        _check_divergence(m, d, states, s0, _watched_qpos(m), advice)
     return states
+
+
+def _watched_qpos(m: mujoco.MjModel) -> np.ndarray:
+    """The state columns the divergence check reads: the arm's joint angles, or every ``qpos``
+    of a model that is not an SO-101 (the servo bench)."""
+    try:
+        return 1 + arm_index(m).qpos
+    except ModelError:
+        return 1 + np.arange(m.nq)
 
 
 def _block_size(observers: Sequence[Observer], now: float, dt: float, left: int) -> int:
@@ -428,11 +437,57 @@ def advance(
     return Trace(times, targets[:0], qpos, completed, done)
 
 
+class BatchStepper:
+    """The stepping kernel for many models at once (a fit's parameter sets): each call steps
+    every model ``nstep`` times from its state, holding its control, in C on a pool of
+    ``threads`` (``mujoco.rollout``), then the divergence check on the final states. Use it as
+    a context manager (the pool's threads end with the block)."""
+
+    def __init__(self, threads: int) -> None:
+        self._pool = _rollout.Rollout(nthread=threads)
+
+    def __enter__(self) -> BatchStepper:
+        self._pool.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._pool.__exit__(*exc)
+
+    def step(
+        self,
+        models: Sequence[mujoco.MjModel],
+        datas: Sequence[mujoco.MjData],
+        states: np.ndarray,
+        control: np.ndarray,
+        nstep: int,
+        advice: str = ADVICE,
+    ) -> np.ndarray:
+        """The states (FULLPHYSICS, ``(len(models), size)``) after ``nstep`` steps of each
+        model from row b of ``states`` with its ``control`` row (``(len(models), 1, nu)``).
+
+        Raises:
+            SimulationDivergedError: a state is not finite; ``advice`` ends the message.
+        """
+        with mujoco_call():  # refused once the interpreter exits (exitgate)
+            st, _ = self._pool.rollout(models, datas, states, control, nstep=nstep)
+        out = st[:, -1, :].copy()
+        dt = np.array([m.opt.timestep for m in models])
+        reset = out[:, 0] < states[:, 0] + (nstep - 0.5) * dt  # MuJoCo reset a bad state
+        bad = ~np.isfinite(out).all(axis=1) | reset
+        if bad.any():
+            raise SimulationDivergedError(
+                f"the simulation of batch entry {int(np.argmax(bad))} diverged (its state not "
+                f"finite, or reset by MuJoCo). {advice}"
+            )
+        return out
+
+
 __all__ = [
     "ADVICE",
     "MAX_PLAYBACK_SPEED",
     "MAX_VIEWER_PERIOD",
     "MIN_PLAYBACK_SPEED",
+    "BatchStepper",
     "Observer",
     "Pacer",
     "Trace",
