@@ -10,7 +10,7 @@ import argparse
 import json
 import sys
 
-from .output import add_arm_option
+from .output import add_arm_option, say
 
 SubParsers = argparse._SubParsersAction
 
@@ -80,7 +80,7 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 
 def _warn(text: str) -> None:
-    print(f"so101sim: warning: {text}", file=sys.stderr)
+    say(f"so101sim: warning: {text}", file=sys.stderr)
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
@@ -105,23 +105,23 @@ def cmd_compare(args: argparse.Namespace) -> int:
     if args.plot is not None:
         plot_overlay(result, args.plot, force=True)
     if args.json:
-        print(json.dumps(result.to_json()))
+        say(json.dumps(result.to_json()))
         return 0
-    print(
+    say(
         f"{result.frames} frames at {result.fps:g} fps, episodes {_eps(result.episodes)}, "
         f"arm profile {result.profile}"
     )
-    print(f"{'joint':<15}{'sim mae':>9}{'rms':>8}{'max':>8}{'lag s':>8}{'command mae':>13}")
+    say(f"{'joint':<15}{'sim mae':>9}{'rms':>8}{'max':>8}{'lag s':>8}{'command mae':>13}")
     for name, e in result.joints.items():
         base = result.command_baseline[name]
-        print(f"{name:<15}{e.mae:>9.2f}{e.rms:>8.2f}{e.max:>8.2f}{e.lag_s:>8.3f}{base:>13.2f}")
+        say(f"{name:<15}{e.mae:>9.2f}{e.rms:>8.2f}{e.max:>8.2f}{e.lag_s:>8.3f}{base:>13.2f}")
     better = sum(e.mae < result.command_baseline[n] for n, e in result.joints.items())
-    print(
+    say(
         f"(degrees; gripper 0-100) the sim is closer to the real arm than the commands on "
         f"{better} of {len(result.joints)} joints"
     )
     if args.plot is not None:
-        print(f"wrote {args.plot}")
+        say(f"wrote {args.plot}")
     return 0
 
 
@@ -148,17 +148,17 @@ def cmd_fit(args: argparse.Namespace) -> int:
         threads=args.threads,
         model=args.model,
     )
-    print(f"fitted on episodes {_eps(result.fit_episodes)}; {result.evaluations} rollouts")
-    print(f"{'joint':<15}" + "".join(f"{k:>22}" for k in _names(result.values)))
+    say(f"fitted on episodes {_eps(result.fit_episodes)}; {result.evaluations} rollouts")
+    say(f"{'joint':<15}" + "".join(f"{k:>22}" for k in _names(result.values)))
     for joint, vals in result.values.items():
         cells = "".join(
             f"{_pm(vals[k], result.stderr[joint][k]):>22}" if k in vals else f"{'':>22}"
             for k in _names(result.values)
         )
-        print(f"{'all (shared)' if joint == '*' else joint:<15}{cells}")
+        say(f"{'all (shared)' if joint == '*' else joint:<15}{cells}")
     _errors("fitted episodes", result.start_fit_error, result.fit_error)
     if result.heldout_error is not None and result.start_heldout_error is not None:
-        print(f"held-out episodes {_eps(result.heldout_episodes)}:")
+        say(f"held-out episodes {_eps(result.heldout_episodes)}:")
         _errors("held-out episodes", result.start_heldout_error, result.heldout_error)
     else:
         _warn("no episode held out (one episode): the error on unseen motion is not measured")
@@ -168,7 +168,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     )
     text = profile_toml(result.profile, comment=comment)
     write_atomically(out, lambda p: p.write_text(text, encoding="utf-8"), "profile")
-    print(f"wrote {out} (use it with --arm {out})")
+    say(f"wrote {out} (use it with --arm {out})")
     return 0
 
 
@@ -184,6 +184,6 @@ def _pm(v: float, e: float) -> str:
 
 
 def _errors(what: str, before: dict[str, float], after: dict[str, float]) -> None:
-    print(f"  mean |sim - real| on the {what} (deg; gripper 0-100), start -> fitted:")
+    say(f"  mean |sim - real| on the {what} (deg; gripper 0-100), start -> fitted:")
     for name in after:
-        print(f"    {name:<15}{before[name]:>8.2f} -> {after[name]:.2f}")
+        say(f"    {name:<15}{before[name]:>8.2f} -> {after[name]:.2f}")

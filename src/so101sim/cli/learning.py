@@ -15,6 +15,7 @@ import sys
 from typing import Any
 
 from ..errors import MissingDependencyError
+from .output import say
 
 SubParsers = Any  # argparse's private _SubParsersAction
 
@@ -158,14 +159,14 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         report = module.generate_dataset(settings, progress)
     finally:
         bar.close()
-    print(
+    say(
         f"wrote {report.episodes} episodes ({report.frames} frames) to {report.root} in "
         f"{report.wall_seconds:.1f} s with {report.workers} worker(s): "
         f"{report.speed:.1f}x real time"
     )
     if report.failed_seeds:
         seeds = ", ".join(str(s) for s in report.failed_seeds)
-        print(f"left out {len(report.failed_seeds)} failed take(s): seeds {seeds}")
+        say(f"left out {len(report.failed_seeds)} failed take(s): seeds {seeds}")
     return 0
 
 
@@ -192,7 +193,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     finally:
         bar.close()
     low, high = report.interval
-    print(
+    say(
         f"{report.task} (randomize {report.randomize}): success {report.successes}/"
         f"{report.episodes} = {100 * report.success_rate:.0f} % "
         f"(95 % interval {100 * low:.0f}-{100 * high:.0f} %) in {report.wall_seconds:.1f} s "
@@ -200,11 +201,11 @@ def cmd_eval(args: argparse.Namespace) -> int:
     )
     times = report.success_times
     if times:
-        print(f"time to success: mean {sum(times) / len(times):.2f} s, "
+        say(f"time to success: mean {sum(times) / len(times):.2f} s, "
               f"median {sorted(times)[len(times) // 2]:.2f} s (simulated)")  # fmt: skip
     videos = [o.video for o in report.outcomes if o.video]
     if videos:
-        print(f"videos of {len(videos)} failure(s) in {videos[0].rsplit('/', 1)[0]}")
+        say(f"videos of {len(videos)} failure(s) in {videos[0].rsplit('/', 1)[0]}")
     return 0
 
 

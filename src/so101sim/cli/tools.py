@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import MotionFileError, RecordingError
+from .output import say
 from .studio import add_web_options
 
 SubParsers = Any  # argparse's private _SubParsersAction
@@ -201,13 +202,13 @@ def cmd_record(args: argparse.Namespace) -> int:
         if isinstance(exc, So101SimError):
             raise
         traceback.print_exc()  # the script's own error, as Python shows it
-        print(f"so101sim: {args.script} raised {type(exc).__name__}", file=sys.stderr)
+        say(f"so101sim: {args.script} raised {type(exc).__name__}", file=sys.stderr)
         return 1
     if run.message:
-        print(run.message, file=sys.stderr)
+        say(run.message, file=sys.stderr)
     for kind, path in run.outputs.items():
-        print(f"wrote the {kind} to {path}")
-    print(f"{args.script}: {run.simulated_seconds:.3f} s of simulated time")
+        say(f"wrote the {kind} to {path}")
+    say(f"{args.script}: {run.simulated_seconds:.3f} s of simulated time")
     return run.exit_status
 
 
@@ -242,7 +243,7 @@ def cmd_workspace(args: argparse.Namespace) -> int:
         args.plot, pitch=args.pitch, samples=args.samples, force=args.force, model=model
     )
     reach = sample_workspace(samples=args.samples, model=model).reach_m
-    print(f"wrote the workspace to {path}; the tip reaches {reach:.3f} m from the base")
+    say(f"wrote the workspace to {path}; the tip reaches {reach:.3f} m from the base")
     return 0
 
 
@@ -251,15 +252,11 @@ def cmd_cache(args: argparse.Namespace) -> int:
 
     if args.action == "clear":
         gone = modelcache.clear()
-        print(
-            f"deleted {gone.entries} compiled model(s), {gone.size / 1e6:.1f} MB, in {gone.folder}"
-        )
+        say(f"deleted {gone.entries} compiled model(s), {gone.size / 1e6:.1f} MB, in {gone.folder}")
         return 0
     info = modelcache.info()
     state = "on" if modelcache.enabled() else "off (SO101SIM_NO_CACHE)"
-    print(
-        f"{info.folder}: {info.entries} compiled model(s), {info.size / 1e6:.1f} MB; cache {state}"
-    )
+    say(f"{info.folder}: {info.entries} compiled model(s), {info.size / 1e6:.1f} MB; cache {state}")
     return 0
 
 
@@ -268,6 +265,6 @@ def cmd_examples(args: argparse.Namespace) -> int:
 
     copied = copy_examples(args.folder, force=args.force)
     for path in copied:
-        print(path)
-    print(f"copied {len(copied)} file(s) to {args.folder}")
+        say(path)
+    say(f"copied {len(copied)} file(s) to {args.folder}")
     return 0
