@@ -107,7 +107,7 @@ def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> i
         job = pv.make_job(motion, count=args.variants, seed=seed, **settings)
         report = pv.summarize(job, run_on_ray(job, args.ray))
     if args.plot is not None:
-        pv.plot_variants(report, args.plot, force=True)
+        pv.plot_variants(report, args.plot, force=args.force)  # checked above; claimed now
     say(json.dumps(report.to_dict(), indent=2) if args.json else pv.format_variants(report))
     if args.plot is not None and not args.json:
         say(f"wrote {args.plot}")

@@ -103,7 +103,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     for w in result.warnings:
         _warn(w)
     if args.plot is not None:
-        plot_overlay(result, args.plot, force=True)
+        plot_overlay(result, args.plot, force=args.force)  # checked above; claimed now
     if args.json:
         say(json.dumps(result.to_json()))
         return 0
@@ -167,7 +167,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
         f"episodes fitted {_eps(result.fit_episodes)}, held out {_eps(result.heldout_episodes)}"
     )
     text = profile_toml(result.profile, comment=comment)
-    write_atomically(out, lambda p: p.write_text(text, encoding="utf-8"), "profile")
+    write = lambda p: p.write_text(text, encoding="utf-8")  # noqa: E731
+    write_atomically(out, write, "profile", force=args.force)
     say(f"wrote {out} (use it with --arm {out})")
     return 0
 

@@ -183,4 +183,6 @@ def plot_overlay(result: CompareResult, path: str | Path, *, force: bool = False
     axes[0].legend(loc="upper right", fontsize=8)
     axes[-1].set_xlabel("time, s")
     fig.tight_layout()
-    return write_atomically(out, lambda p: fig.savefig(p, format="png", dpi=90), "plot")
+    return write_atomically(
+        out, lambda p: fig.savefig(p, format="png", dpi=90), "plot", force=force
+    )

@@ -6,8 +6,17 @@ read-only folder (tried by creating and removing the temporary file there, so ``
 and read-only mounts are caught too), a name longer than the file system allows, and an existing
 device, pipe or socket (``--force`` replaces regular files only: ``--log /dev/null --force``
 must not replace ``/dev/null``). :class:`PendingFile` is the temporary file and its rename; its
-steps may be repeated, so a finish interrupted by Ctrl-C can be resumed. :func:`write_error`
-turns an ``OSError`` met while writing (a full disk) into an :class:`OutputPathError`.
+steps may be repeated, so a finish interrupted by Ctrl-C can be resumed.
+
+**Claimed atomically.** Without ``force``, the finished file is linked to its path, which
+fails if anything is there (``os.link``: one atomic step, no window), instead of renamed over
+it: two processes writing the same ``--log``, ``--record`` or ``--plot`` at once give one file
+and one error (:class:`~so101sim.errors.OutputPathError`, "appeared while this run wrote it"),
+never two successes and a lost file. With ``force`` it is renamed over what is there, as
+before. A file system without hard links claims the path with ``O_EXCL`` and then renames.
+
+:func:`write_error` turns an ``OSError`` met while writing (a full disk) into an
+:class:`OutputPathError`.
 """
 
 from __future__ import annotations
@@ -84,8 +93,9 @@ class PendingFile:
     done again.
     """
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, *, force: bool = False) -> None:
         self.path = path
+        self.force = force  # False: refuse a path that holds a file by then (claimed once)
         self.folder = path.parent if str(path.parent) else Path(".")
         self.tmp = self.folder / temp_name(path, path_limit(self.folder, "PC_NAME_MAX", 255))
         self.committed = False
@@ -97,9 +107,40 @@ class PendingFile:
         if self._renaming and not self.tmp.exists() and self.path.exists():
             self.committed = True  # renamed, then interrupted before this was noted
             return
+        if self._renaming and _same_file(self.tmp, self.path):
+            self.tmp.unlink()  # linked, then interrupted before the temporary name went
+            self.committed = True
+            return
         self._renaming = True
-        os.replace(self.tmp, self.path)
+        if self.force:
+            os.replace(self.tmp, self.path)
+        else:
+            self._claim()
         self.committed = True
+
+    def _claim(self) -> None:
+        """Move the temporary file to :attr:`path` unless something is there (atomic)."""
+        try:
+            os.link(self.tmp, self.path)  # EEXIST if anything is there, however it came
+        except FileExistsError:
+            self._taken()
+        except OSError:  # no hard links here (FAT, some network file systems)
+            try:
+                os.close(os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+            except FileExistsError:
+                self._taken()
+            os.replace(self.tmp, self.path)
+            return
+        self.tmp.unlink()
+
+    def _taken(self) -> None:
+        self._renaming = False
+        self.discard()
+        raise OutputPathError(
+            f"{str(self.path)!r} appeared while this run wrote it (another process wrote the "
+            "same file?), so this run's file was not kept; expected a path no other run "
+            "writes, or --force to replace it"
+        )
 
     def discard(self) -> None:
         if not self.committed:
@@ -114,11 +155,21 @@ class PendingFile:
         return self.path
 
 
-def write_atomically(path: Path, write: Callable[[Path], object], what: str = "output") -> Path:
-    """Call ``write(tmp)`` to write the file under a temporary name, then move it to ``path``;
-    on any error (Ctrl-C included) the temporary file is removed and the error raised (an
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def write_atomically(
+    path: Path, write: Callable[[Path], object], what: str = "output", *, force: bool = False
+) -> Path:
+    """Call ``write(tmp)`` to write the file under a temporary name, then move it to ``path``
+    (without ``force``: only if nothing is there by then, see :class:`PendingFile`); on any
+    error (Ctrl-C included) the temporary file is removed and the error raised (an
     ``OSError``, such as a full disk, as :class:`OutputPathError`)."""
-    pending = PendingFile(path)
+    pending = PendingFile(path, force=force)
     try:
         write(pending.tmp)
         pending.commit()

@@ -175,7 +175,8 @@ def plot_run(
     _shade_phases([*axes, err_ax], err_ax, run)
     fig.suptitle(title or "so101sim run: commanded vs measured joint angles")
     fmt = p.suffix.lstrip(".").lower()
-    return write_atomically(p, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt), what="plot")
+    save = lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt)  # noqa: E731
+    return write_atomically(p, save, what="plot", force=force)
 
 
 def _plot_joint(ax: Any, run: RunLog, i: int) -> None:

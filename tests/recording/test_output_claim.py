@@ -1,0 +1,111 @@
+"""Output files claimed atomically (issue 30): two processes writing the same ``--log`` both
+reported success and one file was lost. The finished file is now linked to its path, which
+fails if anything is there: a race gives one file and one error, never two successes."""
+
+from __future__ import annotations
+
+import pytest
+
+from so101sim import cli
+from so101sim.errors import OutputPathError
+from so101sim.model import load_model
+from so101sim.recording import paths
+from so101sim.recording.csvlog import CsvLog
+from so101sim.sim.simulation import Simulation
+
+
+def _logged(path, model):
+    sim = Simulation(model)
+    log = CsvLog(path, model)  # both checks pass: nothing is at the path yet
+    sim.observers.append(log)
+    sim.hold(0.05)
+    return log
+
+
+def test_two_logs_of_the_same_path_give_one_file_and_one_error(tmp_path):
+    model = load_model(physics_only=True)
+    path = tmp_path / "run.csv"
+    first, second = _logged(path, model), _logged(path, model)
+    assert first.close() == path
+    text = path.read_text()
+    with pytest.raises(OutputPathError, match=r"appeared while this run wrote it.*--force"):
+        second.close()
+    assert path.read_text() == text  # the first one's file, whole
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv"]  # no temporary left
+
+
+def test_force_replaces_what_appeared(tmp_path):
+    path = tmp_path / "out.txt"
+    pending = paths.PendingFile(path, force=True)
+    pending.tmp.write_text("new")
+    path.write_text("old")
+    assert pending.finish(keep=True) == path
+    assert path.read_text() == "new"
+
+
+def test_write_atomically_refuses_a_file_that_appeared(tmp_path):
+    path = tmp_path / "plot.png"
+
+    def write(tmp):
+        tmp.write_bytes(b"mine")
+        path.write_bytes(b"theirs")  # another process finished first
+
+    with pytest.raises(OutputPathError, match="appeared"):
+        paths.write_atomically(path, write, "plot")
+    assert path.read_bytes() == b"theirs"
+    assert [p.name for p in tmp_path.iterdir()] == ["plot.png"]
+
+
+def test_without_hard_links_the_path_is_still_claimed_once(tmp_path, monkeypatch):
+    def no_links(src, dst):
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(paths.os, "link", no_links)
+    path = tmp_path / "a.csv"
+    pending = paths.PendingFile(path)
+    pending.tmp.write_text("mine")
+    assert pending.finish(keep=True) == path
+    assert path.read_text() == "mine" and not pending.tmp.exists()
+    again = paths.PendingFile(path)
+    again.tmp.write_text("second")
+    with pytest.raises(OutputPathError, match="appeared"):
+        again.finish(keep=True)
+    assert path.read_text() == "mine"
+
+
+def test_a_commit_interrupted_after_the_link_is_resumed(tmp_path, monkeypatch):
+    path = tmp_path / "b.csv"
+    pending = paths.PendingFile(path)
+    pending.tmp.write_text("rows")
+    real_unlink = paths.Path.unlink
+    calls = []
+
+    def interrupted_unlink(self, *a, **k):
+        if not calls:
+            calls.append(1)
+            raise KeyboardInterrupt
+        return real_unlink(self, *a, **k)
+
+    monkeypatch.setattr(paths.Path, "unlink", interrupted_unlink)
+    with pytest.raises(KeyboardInterrupt):
+        pending.commit()
+    pending.commit()  # goes on where it stopped: no "appeared" for its own link
+    assert pending.committed and path.read_text() == "rows" and not pending.tmp.exists()
+
+
+def test_the_command_line_reports_a_race_as_one_error(tmp_path, capsys, monkeypatch):
+    path = tmp_path / "run.csv"
+    real = paths.PendingFile._claim
+
+    def other_process_first(self):
+        self.path.write_text("another run's log\n")
+        return real(self)
+
+    monkeypatch.setattr(paths.PendingFile, "_claim", other_process_first)
+    code = cli.main(["hold", "--duration", "0.05", "--headless", "--log", str(path)])
+    out, err = capsys.readouterr()
+    assert code == 2
+    errors = [line for line in err.splitlines() if line.startswith("so101sim: error")]
+    assert len(errors) == 1 and "appeared while this run wrote it" in errors[0], err
+    assert "wrote the log" not in out
+    assert path.read_text() == "another run's log\n"
