@@ -98,7 +98,7 @@ def set_initial_pose(d: mujoco.MjData, position_dict: Pose, *, clip: bool = Fals
     Unlike the handout, this also sets the position targets, so the arm holds the pose rather
     than falling towards the targets' default of 0 on the first step.
     """
-    Simulation.attach(d.model, d).set_pose(position_dict, clip=clip)
+    Simulation.attach(None, d).set_pose(position_dict, clip=clip)  # SettingError: d not MjData
 
 
 def send_position_command(d: mujoco.MjData, position_dict: Pose, *, clip: bool = False) -> None:
@@ -107,7 +107,7 @@ def send_position_command(d: mujoco.MjData, position_dict: Pose, *, clip: bool =
     MuJoCo's position actuators then pull each joint towards its target with the model's PD
     gains. Raises before changing anything if a name, value or limit is wrong.
     """
-    sim = Simulation.attach(d.model, d)
+    sim = Simulation.attach(None, d)
     sim.command_array(sim.units.pose_to_array(position_dict, clip=clip), check=False)
 
 
