@@ -109,3 +109,20 @@ def test_the_command_line_reports_a_race_as_one_error(tmp_path, capsys, monkeypa
     assert len(errors) == 1 and "appeared while this run wrote it" in errors[0], err
     assert "wrote the log" not in out
     assert path.read_text() == "another run's log\n"
+
+
+def test_the_workspace_plot_is_claimed_too(tmp_path, monkeypatch):
+    from so101sim.kinematics import workspace
+
+    path = tmp_path / "ws.png"
+
+    def other_process_first(kin, rows, samples):
+        path.write_bytes(b"another run's plot")
+        return real(kin, rows, samples)
+
+    real = workspace._figure
+    monkeypatch.setattr(workspace, "_figure", other_process_first)
+    with pytest.raises(OutputPathError, match="appeared"):
+        workspace.plot_workspace(path, samples=200)
+    assert path.read_bytes() == b"another run's plot"
+    assert [p.name for p in tmp_path.iterdir()] == ["ws.png"]

@@ -27,7 +27,13 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from ..errors import OutputPathError
-from ..validation import DEFAULT_NAME_MAX, DEFAULT_PATH_MAX, path_limit, temp_name
+from ..validation import (
+    DEFAULT_NAME_MAX,
+    DEFAULT_PATH_MAX,
+    claim_path,
+    path_limit,
+    temp_name,
+)
 from ..validation import check_output_path as _check_output_path
 
 __all__ = [
@@ -115,32 +121,16 @@ class PendingFile:
         if self.force:
             os.replace(self.tmp, self.path)
         else:
-            self._claim()
+            self._claim()  # refused: the temporary file removed, OutputPathError raised
         self.committed = True
 
     def _claim(self) -> None:
         """Move the temporary file to :attr:`path` unless something is there (atomic)."""
         try:
-            os.link(self.tmp, self.path)  # EEXIST if anything is there, however it came
-        except FileExistsError:
-            self._taken()
-        except OSError:  # no hard links here (FAT, some network file systems)
-            try:
-                os.close(os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
-            except FileExistsError:
-                self._taken()
-            os.replace(self.tmp, self.path)
-            return
-        self.tmp.unlink()
-
-    def _taken(self) -> None:
-        self._renaming = False
-        self.discard()
-        raise OutputPathError(
-            f"{str(self.path)!r} appeared while this run wrote it (another process wrote the "
-            "same file?), so this run's file was not kept; expected a path no other run "
-            "writes, or --force to replace it"
-        )
+            claim_path(self.tmp, self.path)
+        except OutputPathError:
+            self._renaming = False  # refused: what is at the path is not this file
+            raise
 
     def discard(self) -> None:
         if not self.committed:

@@ -38,6 +38,7 @@ from .paths import (
     check_path_length,
     check_path_text,
     checked_path,
+    claim_path,
     path_limit,
     temp_name,
 )
@@ -58,6 +59,7 @@ __all__ = [
     "check_range",
     "check_rate",
     "checked_path",
+    "claim_path",
     "is_real",
     "path_limit",
     "shown",

@@ -224,3 +224,36 @@ def _try_creating(p: Path, folder: Path, what: str, error: type[Exception]) -> N
     os.close(fd)
     with contextlib.suppress(OSError):
         os.unlink(tmp)
+
+
+def claim_path(tmp: Path, path: Path) -> None:
+    """Move the finished file ``tmp`` to ``path`` only if nothing is there: in one atomic
+    step (a hard link, which fails if anything is at ``path``, then ``tmp`` removed), or,
+    where the file system has no hard links, by creating ``path`` with ``O_EXCL`` and renaming
+    over it. Two processes claiming the same path: one wins, the other gets the error.
+
+    Raises:
+        OutputPathError: something appeared at ``path`` (``tmp`` is removed).
+    """
+    try:
+        os.link(tmp, path)  # EEXIST if anything is there, however it came
+    except FileExistsError:
+        _taken(tmp, path)
+    except OSError:  # no hard links here (FAT, some network file systems)
+        try:
+            os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+        except FileExistsError:
+            _taken(tmp, path)
+        os.replace(tmp, path)
+        return
+    tmp.unlink()
+
+
+def _taken(tmp: Path, path: Path) -> None:
+    with contextlib.suppress(OSError):
+        tmp.unlink()
+    raise OutputPathError(
+        f"{str(path)!r} appeared while this run wrote it (another process wrote the same "
+        "file?), so this run's file was not kept; expected a path no other run writes, or "
+        "--force to replace it"
+    )
