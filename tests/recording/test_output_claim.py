@@ -12,6 +12,7 @@ from so101sim.model import load_model
 from so101sim.recording import paths
 from so101sim.recording.csvlog import CsvLog
 from so101sim.sim.simulation import Simulation
+from so101sim.validation import STALE_TEMP_S
 
 
 def _logged(path, model):
@@ -126,3 +127,28 @@ def test_the_workspace_plot_is_claimed_too(tmp_path, monkeypatch):
         workspace.plot_workspace(path, samples=200)
     assert path.read_bytes() == b"another run's plot"
     assert [p.name for p in tmp_path.iterdir()] == ["ws.png"]
+
+
+def test_temporary_files_a_killed_run_left_are_deleted_by_the_next_run(tmp_path):
+    """SIGKILL leaves ``.<stem>.<pid>.partial<suffix>``: the next run of the same output
+    deletes it once its process is gone and it is an hour old; anything unsure stays."""
+    import os
+    import subprocess
+    import sys
+
+    gone_pid = subprocess.Popen([sys.executable, "-c", "pass"])  # a pid now unused
+    gone_pid.wait()
+    path = tmp_path / "run.csv"
+    stale = tmp_path / f".run.{gone_pid.pid}.partial.csv"
+    recent = tmp_path / f".run.{gone_pid.pid + 1}.partial.csv"
+    alive = tmp_path / f".run.{os.getppid()}.partial.csv"  # a running process: left
+    other = tmp_path / f".runs.{gone_pid.pid}.partial.csv"  # another output's: left
+    for f in (stale, recent, alive, other):
+        f.write_text("half a log")
+    old = os.path.getmtime(stale) - STALE_TEMP_S - 60
+    for f in (stale, alive, other):
+        os.utime(f, (old, old))
+    pending = paths.PendingFile(path)
+    assert not stale.exists()
+    assert recent.exists() and alive.exists() and other.exists()
+    pending.discard()

@@ -32,6 +32,7 @@ from ..validation import (
     DEFAULT_PATH_MAX,
     claim_path,
     path_limit,
+    remove_stale_temps,
     temp_name,
 )
 from ..validation import check_output_path as _check_output_path
@@ -104,6 +105,7 @@ class PendingFile:
         self.force = force  # False: refuse a path that holds a file by then (claimed once)
         self.folder = path.parent if str(path.parent) else Path(".")
         self.tmp = self.folder / temp_name(path, path_limit(self.folder, "PC_NAME_MAX", 255))
+        remove_stale_temps(path)  # those a run killed by SIGKILL left (its process gone)
         self.committed = False
         self._renaming = False
 

@@ -33,6 +33,7 @@ from .numbers import (
 from .paths import (
     DEFAULT_NAME_MAX,
     DEFAULT_PATH_MAX,
+    STALE_TEMP_S,
     check_input_file,
     check_output_path,
     check_path_length,
@@ -40,6 +41,7 @@ from .paths import (
     checked_path,
     claim_path,
     path_limit,
+    remove_stale_temps,
     temp_name,
 )
 
@@ -48,6 +50,7 @@ __all__ = [
     "DEFAULT_PATH_MAX",
     "MAX_DURATION_S",
     "MAX_RATE_HZ",
+    "STALE_TEMP_S",
     "check_choice",
     "check_count",
     "check_duration",
@@ -62,6 +65,7 @@ __all__ = [
     "claim_path",
     "is_real",
     "path_limit",
+    "remove_stale_temps",
     "shown",
     "temp_name",
 ]

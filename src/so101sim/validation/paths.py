@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import os
 import stat
+import time
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -139,6 +140,43 @@ def temp_name(path: Path, name_max: int = DEFAULT_NAME_MAX) -> str:
     while stem and len(os.fsencode(stem)) > room:
         stem = stem[:-1]
     return f".{stem}{tail}"
+
+
+STALE_TEMP_S = 3600.0
+"""A temporary output file (:func:`temp_name`) whose process is gone and that was not written
+for this long (seconds) was left by a killed run: the next run of the same output deletes it."""
+
+
+def remove_stale_temps(path: Path, older_than: float = STALE_TEMP_S) -> list[Path]:
+    """Delete the temporary files of ``path`` (``.<stem>.<pid>.partial<suffix>``) that a
+    killed run left: their process is not running and they were last written more than
+    ``older_than`` seconds ago (a live writer, even one this machine cannot see, writes
+    more often than that). Returns those deleted; anything unsure is left."""
+    folder = path.parent if str(path.parent) else Path(".")
+    gone = []
+    now = time.time()
+    for f in folder.glob(f".*.partial{path.suffix}"):
+        stem, _, pid = f.name[1 : -len(f".partial{path.suffix}")].rpartition(".")
+        cut = path.stem.startswith(stem) and len(os.fsencode(f.name)) > 200  # stem cut to fit
+        if not pid.isdigit() or (stem != path.stem and not cut) or _running(int(pid)):
+            continue
+        with contextlib.suppress(OSError):  # gone already, or not ours to delete
+            if f.is_file() and not f.is_symlink() and now - f.stat().st_mtime > older_than:
+                f.unlink()
+                gone.append(f)
+    return gone
+
+
+def _running(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (OSError, OverflowError):  # another user's process, or not a pid here: unsure
+        return True
+    return True
 
 
 def check_output_path(
