@@ -54,3 +54,18 @@ def test_an_error_naming_a_file_is_escaped(tmp_path, capsys) -> None:
     out, err = capsys.readouterr()
     assert code == 2
     assert "\x1b" not in out + err and "\\u001b[1A" in err
+
+
+def test_every_printer_of_the_command_line_goes_through_say() -> None:
+    """No ``print(`` in cli/ but the one inside ``say``: a new printer cannot skip escaping."""
+    import ast
+    from pathlib import Path
+
+    import so101sim.cli
+
+    calls = []
+    for path in Path(so101sim.cli.__file__).parent.glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "print":
+                calls.append(f"{path.name}:{node.lineno}")
+    assert len(calls) == 1 and calls[0].startswith("output.py"), calls
