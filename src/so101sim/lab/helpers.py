@@ -37,7 +37,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ..errors import JointValueError
+from ..errors import JointValueError, SettingError
 from ..model.load import default_units
 from ..model.twin import contact_twin
 from ..preflight.check import Thresholds, describe
@@ -46,6 +46,7 @@ from ..preflight.measure import StepRecorder, collect
 from ..preflight.states import StateRecorder, vectorisable
 from ..sim.simulation import Observer, SegmentResult, Simulation
 from ..units import JOINT_NAMES, Pose
+from .arming import attached
 
 log = logging.getLogger(__name__)
 
@@ -92,13 +93,24 @@ def convert_to_list(position_dict: Pose) -> list[float]:
     return units.to_radians(units.pose_to_array(position_dict, check_limits=False)).tolist()
 
 
+def _model_of(d: object) -> mujoco.MjModel:
+    """The model of the simulation's data ``d``; SettingError if ``d`` is not an MjData."""
+    if not isinstance(d, mujoco.MjData):
+        raise SettingError(
+            f"the simulation's data is {type(d).__name__}, not a mujoco.MjData; expected "
+            "the d of m, d = so101sim.load_model(), mujoco.MjData(m)"
+        )
+    return d.model
+
+
 def set_initial_pose(d: mujoco.MjData, position_dict: Pose, *, clip: bool = False) -> None:
     """Place the arm at ``position_dict`` (at rest) and command it to stay there.
 
     Unlike the handout, this also sets the position targets, so the arm holds the pose rather
     than falling towards the targets' default of 0 on the first step.
     """
-    Simulation.attach(None, d).set_pose(position_dict, clip=clip)  # SettingError: d not MjData
+    with attached(_model_of(d), d) as sim:  # SettingError: d is not an MjData
+        sim.set_pose(position_dict, clip=clip)
 
 
 def send_position_command(d: mujoco.MjData, position_dict: Pose, *, clip: bool = False) -> None:
@@ -107,8 +119,8 @@ def send_position_command(d: mujoco.MjData, position_dict: Pose, *, clip: bool =
     MuJoCo's position actuators then pull each joint towards its target with the model's PD
     gains. Raises before changing anything if a name, value or limit is wrong.
     """
-    sim = Simulation.attach(None, d)
-    sim.command_array(sim.units.pose_to_array(position_dict, clip=clip), check=False)
+    with attached(_model_of(d), d) as sim:
+        sim.command_array(sim.units.pose_to_array(position_dict, clip=clip), check=False)
 
 
 def move_to_pose(
@@ -127,15 +139,15 @@ def move_to_pose(
     clock. Returns the move's :class:`~so101sim.sim.simulation.SegmentResult` (the handout
     returned nothing; ignoring the result is fine). If the viewer is closed, returns early.
     """
-    sim = Simulation.attach(m, d)
-    return _watched(
-        sim,
-        "move_to_pose",
-        lambda obs: sim.move_to(
-            desired_position, duration, viewer=viewer, observers=obs, clip=clip,
-            phase="move_to_pose", trace=True,
-        ),
-    )  # fmt: skip
+    with attached(m, d) as sim:
+        return _watched(
+            sim,
+            "move_to_pose",
+            lambda obs: sim.move_to(
+                desired_position, duration, viewer=viewer, observers=obs, clip=clip,
+                phase="move_to_pose", trace=True,
+            ),
+        )  # fmt: skip
 
 
 def hold_position(
@@ -146,14 +158,14 @@ def hold_position(
     Before any command, holds the pose it finds. (The handout re-read the sagging measured pose
     and let the arm creep under gravity.)
     """
-    sim = Simulation.attach(m, d)
-    return _watched(
-        sim,
-        "hold_position",
-        lambda obs: sim.hold(
-            duration, viewer=viewer, observers=obs, phase="hold_position", trace=True
-        ),
-    )
+    with attached(m, d) as sim:
+        return _watched(
+            sim,
+            "hold_position",
+            lambda obs: sim.hold(
+                duration, viewer=viewer, observers=obs, phase="hold_position", trace=True
+            ),
+        )
 
 
 def _watched(

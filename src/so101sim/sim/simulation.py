@@ -33,6 +33,7 @@ import numpy as np
 
 from ..errors import SettingError
 from ..exitgate import gated
+from ..model.arm import ArmLike
 from ..model.load import ArmIndex, arm_index, arm_units, load_model
 from ..units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose
 from ..validation import MAX_DURATION_S, check_count
@@ -75,7 +76,8 @@ class Simulation(ArmTargets):
     :meth:`attach` is the way for handout-style code that holds a bare ``(model, data)``.
 
     ``arm`` (optional): an arm profile (``"official"``, ``"sts3215"``, a TOML path) applied to
-    the servos at load (:mod:`so101sim.model.arm`); None keeps the model file's actuators.
+    the servos at load (:mod:`so101sim.model.arm`) when so101sim loads the model; None is the
+    default, ``sts3215`` (the fitted servos; see :func:`so101sim.model.load_model`).
     """
 
     def __init__(
@@ -84,7 +86,7 @@ class Simulation(ArmTargets):
         *,
         data: mujoco.MjData | None = None,
         initial_pose: Pose | None = STARTING_POSE,
-        arm: Any = None,
+        arm: ArmLike = None,
     ) -> None:
         if arm is not None and isinstance(model, mujoco.MjModel):
             raise SettingError(
