@@ -160,7 +160,7 @@ def test_limited_runs_smoother_than_linear_in_the_simulation():
     errors = {}
     for name in ("linear", "limited"):
         sim = Simulation(arm="official")  # the ideal actuator: the error is the profile's own
-        seg = sim.move_to(ZERO_POSE, 2.0, profile=name)
+        seg = sim.move_to(ZERO_POSE, 2.0, shape=name)
         errors[name] = seg.worst_tracking_error[1]
     assert errors["limited"] < errors["linear"]
 

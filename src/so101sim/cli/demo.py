@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from .output import say
 from .studio import add_web_options
 from .tools import add_video_options
 
@@ -87,7 +88,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     env_id(args.task)  # an unknown task: SettingError listing the tasks (exit status 2)
     viewer = choose_viewer(args.headless)
     if viewer.note:
-        print(viewer.note)
+        say(viewer.note)
     fields = ("width", "height", "fps", "camera", "quality", "caption")
     settings = VideoSettings(**{name: getattr(args, name) for name in fields}).validated()
     result = run_expert(
@@ -105,11 +106,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
         status = "FAILED" if result.completed else "stopped (viewer closed)"
     tries = "grasp" if result.attempts == 1 else "grasps"
     grasps = "" if "goal_distance_m" in result.figures else f", {result.attempts} {tries} tried"
-    print(
+    say(
         f"{args.task}, seed {result.seed}: {status} "
         f"({result.sim_time:.2f} s of simulated time in all, {result.steps} steps{grasps})"
     )
-    print(format_figures(result.figures))
+    say(format_figures(result.figures))
     if result.video is not None:
-        print(f"wrote the video to {result.video} ({result.video_frames} frames)")
+        say(f"wrote the video to {result.video} ({result.video_frames} frames)")
     return 0 if result.success or not result.completed else 1

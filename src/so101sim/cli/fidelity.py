@@ -10,7 +10,7 @@ import argparse
 import json
 import sys
 
-from .output import add_arm_option
+from .output import add_arm_option, say
 
 SubParsers = argparse._SubParsersAction
 
@@ -97,7 +97,7 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 
 def _warn(text: str) -> None:
-    print(f"so101sim: warning: {text}", file=sys.stderr)
+    say(f"so101sim: warning: {text}", file=sys.stderr)
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
@@ -121,37 +121,35 @@ def cmd_compare(args: argparse.Namespace) -> int:
     for w in result.warnings:
         _warn(w)
     if args.plot is not None:
-        plot_overlay(result, args.plot, force=True)
+        plot_overlay(result, args.plot, force=args.force)  # checked above; claimed now
     if args.json:
-        print(json.dumps(result.to_json()))
+        say(json.dumps(result.to_json()))
         return 0
-    print(
+    say(
         f"{result.frames} frames at {result.fps:g} fps, episodes {_eps(result.episodes)}, "
         f"arm profile {result.profile}"
     )
-    print(
+    say(
         f"{'joint':<15}{'sim mae':>9}{'rms':>8}{'max':>8}{'lag s':>8}{'command mae':>13}"
         f"{'holds':>8}{'moves':>8}"
     )
     for name, e in result.joints.items():
         base = result.command_baseline[name]
         split = f"{_cell(result.holds.get(name))}{_cell(result.moves.get(name))}"
-        print(
-            f"{name:<15}{e.mae:>9.2f}{e.rms:>8.2f}{e.max:>8.2f}{e.lag_s:>8.3f}{base:>13.2f}{split}"
-        )
+        say(f"{name:<15}{e.mae:>9.2f}{e.rms:>8.2f}{e.max:>8.2f}{e.lag_s:>8.3f}{base:>13.2f}{split}")
     better = sum(e.mae < result.command_baseline[n] for n, e in result.joints.items())
-    print(
+    say(
         f"(degrees; gripper 0-100) the sim is closer to the real arm than the commands on "
         f"{better} of {len(result.joints)} joints"
     )
-    print("holds: sim mae while the joint's command holds still; moves: while it moves")
+    say("holds: sim mae while the joint's command holds still; moves: while it moves")
     for w in result.worst:
-        print(
+        say(
             f"worst window: episode {w.episode}, {w.t0:.2f}-{w.t1:.2f} s, body mae "
             f"{w.mae:.2f} deg, worst joint {w.joint}"
         )
     if args.plot is not None:
-        print(f"wrote {args.plot} (the worst windows shaded)")
+        say(f"wrote {args.plot} (the worst windows shaded)")
     return 0
 
 
@@ -194,14 +192,14 @@ def cmd_fit(args: argparse.Namespace) -> int:
         threads=args.threads,
         model=args.model,
     )
-    print(f"fitted on episodes {_eps(result.fit_episodes)}; {result.evaluations} rollouts")
-    print(f"{'joint':<15}" + "".join(f"{k:>22}" for k in _names(result.values)))
+    say(f"fitted on episodes {_eps(result.fit_episodes)}; {result.evaluations} rollouts")
+    say(f"{'joint':<15}" + "".join(f"{k:>22}" for k in _names(result.values)))
     for joint, vals in result.values.items():
         cells = "".join(
             f"{_pm(vals[k], result.stderr[joint][k]):>22}" if k in vals else f"{'':>22}"
             for k in _names(result.values)
         )
-        print(f"{'all (shared)' if joint == '*' else joint:<15}{cells}")
+        say(f"{'all (shared)' if joint == '*' else joint:<15}{cells}")
     _errors("fitted episodes", result.start_fit_error, result.fit_error)
     if result.gripper_blocked_frames:
         _warn(
@@ -213,7 +211,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     else:
         _warn("no episode held out (one episode): the error on unseen motion is not measured")
     if result.worse_than_default and not args.force:
-        print(
+        say(
             f"so101sim: error: REFUSED: the fitted profile predicts the held-out episodes "
             f"{_eps(result.heldout_episodes)} WORSE than the default profile "
             f"({body_mean(result.heldout_error or {}):.2f} deg against "
@@ -229,8 +227,9 @@ def cmd_fit(args: argparse.Namespace) -> int:
         f"episodes fitted {_eps(result.fit_episodes)}, held out {_eps(result.heldout_episodes)}"
     )
     text = profile_toml(result.profile, comment=comment)
-    write_atomically(out, lambda p: p.write_text(text, encoding="utf-8"), "profile")
-    print(f"wrote {out} (use it with --arm {out})")
+    write = lambda p: p.write_text(text, encoding="utf-8")  # noqa: E731
+    write_atomically(out, write, "profile", force=args.force)
+    say(f"wrote {out} (use it with --arm {out})")
     return 0
 
 
@@ -252,14 +251,14 @@ def _heldout_table(result) -> None:
         "commands": result.command_heldout_error,
     }
     cols = {k: v for k, v in cols.items() if v is not None}
-    print(
+    say(
         f"held-out episodes {_eps(result.heldout_episodes)}: mean |sim - real| (deg; gripper "
         "0-100); commands: the arm reaching every command"
     )
-    print(f"    {'joint':<15}" + "".join(f"{k:>10}" for k in cols))
+    say(f"    {'joint':<15}" + "".join(f"{k:>10}" for k in cols))
     for name in result.heldout_error:
-        print(f"    {name:<15}" + "".join(f"{v[name]:>10.2f}" for v in cols.values()))
-    print(f"    {'body joints':<15}" + "".join(f"{body_mean(v):>10.2f}" for v in cols.values()))
+        say(f"    {name:<15}" + "".join(f"{v[name]:>10.2f}" for v in cols.values()))
+    say(f"    {'body joints':<15}" + "".join(f"{body_mean(v):>10.2f}" for v in cols.values()))
 
 
 def _names(values: dict[str, dict[str, float]]) -> list[str]:
@@ -274,6 +273,6 @@ def _pm(v: float, e: float) -> str:
 
 
 def _errors(what: str, before: dict[str, float], after: dict[str, float]) -> None:
-    print(f"  mean |sim - real| on the {what} (deg; gripper 0-100), start -> fitted:")
+    say(f"  mean |sim - real| on the {what} (deg; gripper 0-100), start -> fitted:")
     for name in after:
-        print(f"    {name:<15}{before[name]:>8.2f} -> {after[name]:.2f}")
+        say(f"    {name:<15}{before[name]:>8.2f} -> {after[name]:.2f}")

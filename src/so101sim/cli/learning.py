@@ -15,6 +15,7 @@ import sys
 from typing import Any
 
 from ..errors import MissingDependencyError
+from .output import say
 
 SubParsers = Any  # argparse's private _SubParsersAction
 
@@ -196,14 +197,14 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         report = module.generate_dataset(settings, progress)
     finally:
         bar.close()
-    print(
+    say(
         f"wrote {report.episodes} episodes ({report.frames} frames) to {report.root} in "
         f"{report.wall_seconds:.1f} s with {report.workers} worker(s): "
         f"{report.speed:.1f}x real time"
     )
     if report.failed_seeds:
         seeds = ", ".join(str(s) for s in report.failed_seeds)
-        print(f"left out {len(report.failed_seeds)} failed take(s): seeds {seeds}")
+        say(f"left out {len(report.failed_seeds)} failed take(s): seeds {seeds}")
     return 0
 
 
@@ -230,7 +231,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     finally:
         bar.close()
     low, high = report.interval
-    print(
+    say(
         f"{report.task} (randomize {report.randomize}): success {report.successes}/"
         f"{report.episodes} = {100 * report.success_rate:.0f} % "
         f"(95 % interval {100 * low:.0f}-{100 * high:.0f} %) in {report.wall_seconds:.1f} s "
@@ -238,11 +239,11 @@ def cmd_eval(args: argparse.Namespace) -> int:
     )
     times = report.success_times
     if times:
-        print(f"time to success: mean {sum(times) / len(times):.2f} s, "
+        say(f"time to success: mean {sum(times) / len(times):.2f} s, "
               f"median {sorted(times)[len(times) // 2]:.2f} s (simulated)")  # fmt: skip
     videos = [o.video for o in report.outcomes if o.video]
     if videos:
-        print(f"videos of {len(videos)} failure(s) in {videos[0].rsplit('/', 1)[0]}")
+        say(f"videos of {len(videos)} failure(s) in {videos[0].rsplit('/', 1)[0]}")
     return 0
 
 
@@ -251,13 +252,13 @@ def cmd_policy_check(args: argparse.Namespace) -> int:
 
     result = check_policy(args.policy, args.robot_config)
     for finding in result.mismatches:
-        print(f"{finding.what}: {finding.message}")
+        say(f"{finding.what}: {finding.message}")
     for note in result.notes:
-        print(f"note: {note}")
+        say(f"note: {note}")
     if result.ok:
-        print(f"OK: {args.policy} reads nothing {args.robot_config} does not deliver")
+        say(f"OK: {args.policy} reads nothing {args.robot_config} does not deliver")
         return 0
-    print(f"{len(result.mismatches)} mismatch(es): the policy would not see what it was trained on")
+    say(f"{len(result.mismatches)} mismatch(es): the policy would not see what it was trained on")
     return 1
 
 

@@ -36,7 +36,7 @@ from typing import Any
 from .. import __version__
 from ..errors import So101SimError
 from .commands import cmd_check, cmd_model_path, cmd_pose, cmd_teleop, cmd_view
-from .output import SIGNALS, _say, _signal_name, add_arm_option
+from .output import SIGNALS, EscapingFormatter, _say, _signal_name, add_arm_option
 from .run import cmd_hold, cmd_run
 from .studio import add_web_options
 from .tools import (
@@ -257,9 +257,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if script_args is not None:
         args.script_args = [*args.script_args, *script_args]
+    handler = logging.StreamHandler()  # stderr; control characters escaped as all output
+    handler.setFormatter(EscapingFormatter("%(levelname)s %(name)s: %(message)s"))
     logging.basicConfig(
-        level=logging.DEBUG if args.verbose else logging.WARNING,
-        format="%(levelname)s %(name)s: %(message)s",
+        level=logging.DEBUG if args.verbose else logging.WARNING, handlers=[handler]
     )
     with SIGNALS:
         try:

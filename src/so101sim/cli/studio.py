@@ -16,6 +16,8 @@ import time
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
+from .output import say
+
 if TYPE_CHECKING:
     from ..studio import Studio
 
@@ -76,7 +78,7 @@ def announce(url: str, what: str = "the studio") -> None:
 
             display(HTML(f'{what}: <a href="{url}" target="_blank">{url}</a>'))
             return
-    print(f"{what}: open {url} in a web browser (Ctrl-C to stop)", flush=True)
+    say(f"{what}: open {url} in a web browser (Ctrl-C to stop)", flush=True)
 
 
 def _studio(model: Any, args: argparse.Namespace, **kwargs: Any) -> Studio:
@@ -107,7 +109,7 @@ def _linger(studio: Studio, seconds: float) -> None:
     studio.finish()
     if seconds <= 0:
         return
-    print(f"the run is over: replay it on the page for {seconds:g} s more (Ctrl-C to stop)")
+    say(f"the run is over: replay it on the page for {seconds:g} s more (Ctrl-C to stop)")
     try:
         end = time.monotonic() + seconds
         while (left := end - time.monotonic()) > 0:
@@ -115,7 +117,7 @@ def _linger(studio: Studio, seconds: float) -> None:
     except (KeyboardInterrupt, Exception) as exc:  # Ctrl-C is how a studio is stopped
         if not _stopped(exc):
             raise
-        print("stopped")
+        say("stopped")
 
 
 # ---------------------------------------------------------------------------- view
@@ -135,7 +137,7 @@ def view_web(args: argparse.Namespace) -> int:
     except (KeyboardInterrupt, Exception) as exc:  # Ctrl-C is how a studio is stopped
         if not _stopped(exc):
             raise
-        print("stopped")
+        say("stopped")
     return 0
 
 
@@ -197,13 +199,13 @@ def pose_web(args: argparse.Namespace) -> int:
     try:  # from the URL's announcement on, Ctrl-C is the way to stop: it ends with status 0
         with studio:
             announce(studio.url, "the pose finder")
-            print(
+            say(
                 "Move the joint sliders on the page (degrees; gripper 0-100). Each pose the "
                 "arm is left in is printed below; Ctrl-C to finish.",
                 flush=True,
             )
             for change in studio.poses():
-                print(
+                say(
                     f"\n# pose {change.number}\n"
                     f"python: {format_python(change.pose)}\n"
                     f"toml:   {format_toml(f'pose_{change.number}', change.pose)}"
@@ -213,7 +215,7 @@ def pose_web(args: argparse.Namespace) -> int:
     except (KeyboardInterrupt, Exception) as exc:  # Ctrl-C is how a studio is stopped
         if not _stopped(exc):
             raise
-        print("stopped")
+        say("stopped")
     return 0
 
 
@@ -255,10 +257,10 @@ def demo_web(args: argparse.Namespace, format_figures: Any) -> int:
                 if result.success_time is not None
                 else "FAILED"
             )
-            print(f"{args.task}, seed {result.seed}: {status} ({result.sim_time:.2f} s simulated)")
-            print(format_figures(result.figures))
+            say(f"{args.task}, seed {result.seed}: {status} ({result.sim_time:.2f} s simulated)")
+            say(format_figures(result.figures))
             if written is not None:
-                print(f"wrote the video to {written}")
+                say(f"wrote the video to {written}")
             _linger(studio, args.linger)
     finally:
         if recorder is not None:
@@ -289,10 +291,10 @@ def record_web(args: argparse.Namespace, options: dict[str, Any]) -> int:
     try:
         run = run_script(args.script, list(args.script_args), args.output, live=live, **options)
         if run.message:
-            print(run.message, file=sys.stderr)
+            say(run.message, file=sys.stderr)
         for kind, path in run.outputs.items():
-            print(f"wrote the {kind} to {path}")
-        print(f"{args.script}: {run.simulated_seconds:.3f} s of simulated time")
+            say(f"wrote the {kind} to {path}")
+        say(f"{args.script}: {run.simulated_seconds:.3f} s of simulated time")
         if "studio" in holder:
             _linger(holder["studio"], args.linger)
         return run.exit_status

@@ -254,4 +254,6 @@ def plot_overlay(result: CompareResult, path: str | Path, *, force: bool = False
         fig.suptitle("shaded red: the worst windows of error (compare's worst_windows)", fontsize=9)
     axes[-1].set_xlabel("time, s")
     fig.tight_layout()
-    return write_atomically(out, lambda p: fig.savefig(p, format="png", dpi=90), "plot")
+    return write_atomically(
+        out, lambda p: fig.savefig(p, format="png", dpi=90), "plot", force=force
+    )

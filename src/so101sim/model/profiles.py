@@ -208,31 +208,35 @@ def _check_uncertainty(table: object, where: str) -> dict[str, float]:
 
 
 def profile_toml(profile: ArmProfile, *, comment: str = "") -> str:
-    """``profile`` as TOML text that :func:`load_profile` reads back to the same values."""
-    lines = [f"# {c}" if c else "#" for c in comment.splitlines()] if comment else []
-    lines += [
-        f"name = {_q(profile.name)}",
-        f"description = {_q(profile.description)}",
-        f"supply_v = {profile.supply_v!r}",
-        f"measured_at_v = {profile.measured_at_v!r}",
-        f"scale_with_supply = {'true' if profile.scale_with_supply else 'false'}",
-        f"static_friction = {'true' if profile.static_friction else 'false'}",
-        "",
-        "[servo]",
-    ]
-    lines += [f"{f.name} = {float(getattr(profile.servo, f.name))!r}" for f in fields(ServoParams)]
-    for joint in JOINT_NAMES:
-        values = profile.joints.get(joint)
-        if values:
-            lines += ["", f"[joints.{joint}]"]
-            lines += [f"{k} = {float(v)!r}" for k, v in values.items()]
+    """``profile`` as TOML text that :func:`load_profile` reads back to the same values
+    (written by ``tomli-w``: every string escaped as TOML says)."""
+    import tomli_w  # imported here: only writing a profile needs it
+
+    data: dict[str, Any] = {
+        "name": profile.name,
+        "description": profile.description,
+        "supply_v": float(profile.supply_v),
+        "measured_at_v": float(profile.measured_at_v),
+        "scale_with_supply": bool(profile.scale_with_supply),
+        "static_friction": bool(profile.static_friction),
+        "servo": {f.name: float(getattr(profile.servo, f.name)) for f in fields(ServoParams)},
+    }
+    joints = {
+        joint: {k: float(v) for k, v in profile.joints[joint].items()}
+        for joint in JOINT_NAMES
+        if profile.joints.get(joint)
+    }
+    if joints:
+        data["joints"] = joints
     if profile.uncertainty:
-        lines += ["", "[uncertainty]"]
-        lines += [f"{k} = {float(v)!r}" for k, v in profile.uncertainty.items()]
-    for joint, values in profile.calibration.items():
-        lines += ["", f"[calibration.{joint}]"]
-        lines += [f"{k} = {float(v)!r}" for k, v in values.items()]
-    return "\n".join(lines) + "\n"
+        data["uncertainty"] = {k: float(v) for k, v in profile.uncertainty.items()}
+    if profile.calibration:
+        data["calibration"] = {
+            joint: {k: float(v) for k, v in values.items()}
+            for joint, values in profile.calibration.items()
+        }
+    head = "".join(f"# {c}\n" if c else "#\n" for c in comment.splitlines()) if comment else ""
+    return head + tomli_w.dumps(data)
 
 
 def profile_key(profile: ArmLike) -> str:
@@ -265,7 +269,3 @@ def gripper_full_range(profile: ArmLike) -> np.ndarray:
     ``Max_Torque_Limit`` 500 of 1000), replacing the profile's own fraction."""
     p = load_profile(profile).joint("gripper")
     return np.array([-p.torque_limit, p.torque_limit])
-
-
-def _q(text: str) -> str:
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'

@@ -154,7 +154,7 @@ def plan_segments(
             else:
                 _, targets = sim.plan_tip_move(
                     seg.tip, seg.duration, pitch=seg.pitch, roll=seg.roll, path=seg.path,
-                    profile=seg.profile,
+                    shape=seg.profile,
                 )  # fmt: skip
             entry = PlannedSegment(seg, current, targets, len(targets))
             prof = get_profile(seg.profile, units)
@@ -171,7 +171,7 @@ def plan_segments(
                     if strict:  # refused once the whole motion is checked: go on from its goal
                         sim.command_array(goal, check=False)
                         continue
-            _, targets = sim.plan_move(seg.target, seg.duration, profile=seg.profile, clip=clip)
+            _, targets = sim.plan_move(seg.target, seg.duration, shape=seg.profile, clip=clip)
             if len(targets) > _KEEP_ROWS and isinstance(seg.profile, str) and seg.profile in SHAPES:
                 recipe = (targets[-1].copy(), get_profile(seg.profile), dt)
                 entry = PlannedSegment(seg, current, None, len(targets), recipe)

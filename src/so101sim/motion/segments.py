@@ -40,7 +40,7 @@ def plan_move(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Validate a move and compute all its targets: ``(start, targets)`` in arm units
     (:meth:`Simulation.plan_move`). Nothing moves."""
-    return Simulation.attach(m, d).plan_move(target, duration, profile=profile, clip=clip)
+    return Simulation.attach(m, d).plan_move(target, duration, shape=profile, clip=clip)
 
 
 def move(
@@ -57,7 +57,7 @@ def move(
     """Move the arm from its last commanded target to ``target`` over ``duration`` simulated
     seconds, then return what happened (:meth:`Simulation.move_to`)."""
     return Simulation.attach(m, d).move_to(
-        target, duration, profile=profile, observers=observers, clip=clip, phase=phase
+        target, duration, shape=profile, observers=observers, clip=clip, phase=phase
     )
 
 

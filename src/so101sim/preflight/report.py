@@ -250,7 +250,7 @@ def plot_variants(report: VariantsReport, path: str | Path, *, force: bool = Fal
         f"{len(report.outcomes)} variants (seed {report.job.seed}): {report.fraction:.1%} PASS"
     )
     fmt = p.suffix.lstrip(".").lower()
-    return write_atomically(p, lambda tmp: fig.savefig(tmp, format=fmt), what="plot")
+    return write_atomically(p, lambda tmp: fig.savefig(tmp, format=fmt), what="plot", force=force)
 
 
 __all__ = [

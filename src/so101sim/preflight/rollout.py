@@ -30,10 +30,13 @@ The block-by-block reduction, figure for figure the single check's
 
 from __future__ import annotations
 
+import contextlib
 import copy
+import logging
 import math
+import signal
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,6 +44,7 @@ import mujoco
 import numpy as np
 
 from ..errors import ModelError
+from ..exitgate import mujoco_call
 from ..model.arm import ArmLike, fill_delay_history
 from ..model.build import Addition, build, recipe
 from ..model.load import arm_index, arm_units
@@ -54,6 +58,8 @@ from .accumulate import Accumulator, run_lengths
 from .judge import Finding, Thresholds, judge
 from .measure import Contact, Measurements
 from .variants import Variant, apply_variant
+
+log = logging.getLogger(__name__)
 
 BLOCK = 4096
 """Steps rolled out per call: at most this many states per variant are held at once."""
@@ -163,8 +169,15 @@ class Worker:
     """One thread's model copy and data (the kernel keeps a rollout runner per thread); runs
     variants one at a time."""
 
-    def __init__(self, base: mujoco.MjModel, plan: MotionPlan, thresholds: Thresholds) -> None:
+    def __init__(
+        self,
+        base: mujoco.MjModel,
+        plan: MotionPlan,
+        thresholds: Thresholds,
+        stop: Callable[[], bool] | None = None,
+    ) -> None:
         self.base, self.plan, self.th = base, plan, thresholds
+        self.stop = stop  # asked before each block: True ends the run (_Stopped)
         self.m = copy.copy(base)
         self.d = mujoco.MjData(self.m)
         self.idx = arm_index(base)
@@ -197,6 +210,8 @@ class Worker:
         m, d, idx = self.m, self.d, self.idx
         targets, n = self.plan.targets, len(self.plan.targets)
         for a in range(0, n, BLOCK):
+            if self.stop is not None and self.stop():
+                raise _Stopped
             k = min(BLOCK, n - a)
             ctrl = np.zeros((k, m.nu))
             ctrl[:, idx.actuator] = targets[a : a + k] - offset
@@ -227,7 +242,8 @@ class Worker:
         start = units.from_radians(plan.start - np.radians(v.zero_offset_deg))
         acc = Accumulator(len(plan.phases), units)
         last_cmd = start  # the commanded target before the first step
-        offset, s0 = self._start(v)  # writes the variant into the model: read it after
+        with mujoco_call():  # refused once the interpreter exits (exitgate)
+            offset, s0 = self._start(v)  # writes the variant into the model: read it after
         limit = np.abs(self.m.actuator_forcerange[self.idx.actuator, 1])
         force_of = self._forces_of(acc, limit)
         # the single check's recorder also reads the forces and contacts before the first step
@@ -282,29 +298,95 @@ def run_variants(
     errors: list[BaseException] = []
 
     def work() -> None:
+        worker = None
         try:
-            worker = Worker(base, plan, thresholds)
+            with mujoco_call():  # the worker's own model and data are made in the gate too
+                worker = Worker(base, plan, thresholds, stop=lambda: bool(errors))
             while not errors:
                 with lock:
                     i = next(todo, None)
                 if i is None:
                     return
                 results[i] = worker.run(variants[i])
+        except _Stopped:
+            return
         except BaseException as exc:  # re-raised on the calling thread
             errors.append(exc)
+        finally:
+            worker = None  # its MjData freed now, while the caller waits (_run_threads)
 
     count = max(1, min(threads, len(variants)))
+    log.info("rolling out %d variants on %d threads", len(variants), count)
     if count == 1:
         work()
     else:
-        pool = [threading.Thread(target=work, daemon=True) for _ in range(count)]
-        for th in pool:
-            th.start()
-        for th in pool:
-            th.join()
+        _run_threads(work, count, errors)
     if errors:
         raise errors[0]
     return [r for r in results if r is not None]
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """Hold SIGINT, SIGTERM and SIGHUP back (POSIX, the main thread) while the block runs; one
+    that came meanwhile is handled as the block ends. The threads started meanwhile inherit
+    the mask: they never take a signal (Python handles them in the main thread anyway)."""
+    mask = getattr(signal, "pthread_sigmask", None)
+    if mask is None or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {s for n in ("SIGINT", "SIGTERM", "SIGHUP") if (s := getattr(signal, n, None))}
+    previous = mask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        mask(signal.SIG_SETMASK, previous)
+
+
+class _Stopped(Exception):
+    """A worker told to stop (another failed, or the caller was interrupted)."""
+
+
+def _run_threads(work: Callable[[], None], count: int, errors: list[BaseException]) -> None:
+    """Run ``work`` on ``count`` threads and wait until each has finished with MuJoCo,
+    whatever happens meanwhile.
+
+    A signal (Ctrl-C, SIGTERM, SIGHUP: the CLI raises them in this thread) or any error while
+    waiting stops the workers (they look at ``errors`` between blocks of steps, so each ends
+    within one block) and still waits for them before it goes on up: a thread inside MuJoCo
+    (a call, or freeing its ``MjData``) when the interpreter finalises crashed the process
+    (exit 139, issue 30). Each worker says it is done with an event of its own, set after its
+    MuJoCo objects are freed: ``Thread.join`` cannot be trusted once interrupted (Python 3.11
+    may then mark a running thread as stopped). A second interrupt while they stop waits too."""
+    done = [threading.Event() for _ in range(count)]
+
+    def run(k: int) -> None:
+        try:
+            work()
+        finally:
+            done[k].set()
+
+    pending: BaseException | None = None
+    pool = [threading.Thread(target=run, args=(k,), daemon=True) for k in range(count)]
+    started: list[threading.Event] = []
+    try:
+        with _signals_held():  # a signal in Thread.start would hide a started thread
+            for k, th in enumerate(pool):
+                th.start()
+                started.append(done[k])
+        for event in done:
+            event.wait()
+    except BaseException as exc:
+        pending = exc
+        errors.append(exc)  # the workers stop at their next block
+    while not all(event.is_set() for event in started):
+        try:
+            for event in started:
+                event.wait()
+        except BaseException as exc:  # another signal: still wait for them (one block each)
+            pending = pending or exc
+    if pending is not None:
+        raise pending
 
 
 class _ContactNamer(Observer):
