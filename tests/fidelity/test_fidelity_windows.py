@@ -4,6 +4,7 @@ LeRobot's calibration found by --robot-id; explicit held-out episodes."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 
@@ -17,7 +18,7 @@ from fidelity_helpers import as_read, commands, record, write_lerobot
 from so101sim.cli import main
 from so101sim.errors import CalibrationError
 from so101sim.fidelity.calibration import lerobot_calibration_path
-from so101sim.fidelity.compare import compare
+from so101sim.fidelity.compare import compare, plot_heading
 from so101sim.fidelity.logs import ArmLog, Episode
 from so101sim.fidelity.windows import blocked_gripper, still_frames, worst_windows
 from so101sim.model.arm import load_profile
@@ -88,6 +89,12 @@ def test_compare_splits_holds_from_moves_and_leaves_a_blocked_gripper_out(tmp_pa
     names = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
     assert float(body[1]) == pytest.approx(sum(float(rows[n][1]) for n in names) / 5, abs=0.01)
     assert png.stat().st_size > 1000
+    # the plot says which episode it draws and what its shading means
+    assert plot_heading(res, True) == (
+        "episode 0\nshaded red: the worst windows of error; blue: the real gripper blocked"
+    )
+    two = dataclasses.replace(res, episodes=[2, 3], worst=[])
+    assert plot_heading(two, False).startswith("episode 2 (the first of the 2 compared; each")
 
 
 def test_robot_id_reads_lerobots_calibration_folder(tmp_path, monkeypatch):
