@@ -31,7 +31,13 @@ from so101sim.errors import OutputPathError, SettingError
 from so101sim.scenes import randomization
 from so101sim.validation import check_choice, check_count
 
-TASK_TYPES = {"pick_cube": "PickCube-v0", "cube_to_bowl": "CubeToBowl-v0"}
+TASK_TYPES = {
+    "pick_cube": "PickCube-v0",
+    "cube_to_bowl": "CubeToBowl-v0",
+    "reach": "Reach-v0",
+    "lift_cylinder": "LiftCylinder-v0",
+    "lift_sphere": "LiftSphere-v0",
+}
 """The tasks (``--task``) and their Gymnasium names (``--env.type=so101sim_<task>``)."""
 MAX_EPISODES = 100_000
 MAX_WORKERS = 256

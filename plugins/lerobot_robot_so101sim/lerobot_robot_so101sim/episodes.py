@@ -55,7 +55,7 @@ class Episode:
 
 def _simulate(settings: DatasetSettings, seed: int) -> tuple[Any, float]:
     """In a worker: one episode (so101sim's, no LeRobot import) and its wall time."""
-    from so101sim.envs.run import expert_frames
+    from so101sim.envs import expert_frames
 
     start = time.perf_counter()
     frames = expert_frames(
@@ -117,7 +117,7 @@ def episodes(settings: DatasetSettings, seeds: list[int]) -> Iterator[Episode]:
     The workers run so101sim's :func:`~so101sim.envs.run.expert_frames` (plain arguments, so
     they import nothing of LeRobot or of this plugin); this process turns each into an
     :class:`Episode`."""
-    from so101sim.envs.run import expert_frames
+    from so101sim.envs import expert_frames
 
     kwargs = _frames_kwargs(settings)
     if settings.use_ray:

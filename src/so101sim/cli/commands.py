@@ -65,7 +65,8 @@ def cmd_pose(args: argparse.Namespace) -> int:
 def cmd_check(args: argparse.Namespace) -> int:
     import json
 
-    from ..motion.file import lab_motion_path  # imported here: they import MuJoCo
+    from ..model.build import servo_model  # imported here: they import MuJoCo
+    from ..motion.file import lab_motion_path
     from ..preflight.check import Thresholds, check_motion_file, format_report
 
     names = ("max_effort", "max_saturation", "max_tracking_error", "limit_margin")
@@ -82,19 +83,23 @@ def cmd_check(args: argparse.Namespace) -> int:
         report = check_motion_file(
             motion, model=args.model, thresholds=thresholds, strict=args.strict, arm=args.arm
         )
-    # the report names the motion it judged: the file, or the lab motion
+    # the report names the motion it judged (the file, or the lab motion) and the servo
+    # model it ran: the efforts and tracking errors are that model's
+    servos = servo_model(arm=args.arm)
     if args.json:
-        print(json.dumps({"motion": str(motion), **report.to_dict()}, indent=2))
+        named = {"motion": str(motion), "servo_model": servos}
+        print(json.dumps({**named, **report.to_dict()}, indent=2))
     else:
         name = f"the lab motion ({motion})" if args.motion is None else str(motion)
-        print(f"checked {name}\n{format_report(report)}")
+        print(f"checked {name}\nservo model: {servos}\n{format_report(report)}")
     return 0 if report.passed else 1
 
 
 def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> int:
     import json
 
-    from ..preflight import robust as pv  # imports MuJoCo
+    from ..model.build import servo_model  # imported here: they import MuJoCo
+    from ..preflight import robust as pv
 
     settings = {"model": args.model, "thresholds": thresholds, "strict": args.strict}
     settings["arm"] = args.arm
@@ -112,7 +117,12 @@ def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> i
         report = pv.summarize(job, run_on_ray(job, args.ray))
     if args.plot is not None:
         pv.plot_variants(report, args.plot, force=True)
-    print(json.dumps(report.to_dict(), indent=2) if args.json else pv.format_variants(report))
+    servos = servo_model(arm=args.arm)  # the variants perturb this servo model
+    if args.json:
+        print(json.dumps({"servo_model": servos, **report.to_dict()}, indent=2))
+    else:
+        first, _, rest = pv.format_variants(report).partition("\n")
+        print(f"{first}\nservo model: {servos} (perturbed per variant)\n{rest}")
     if args.plot is not None and not args.json:
         print(f"wrote {args.plot}")
     return 0 if report.passed == len(report.outcomes) else 1

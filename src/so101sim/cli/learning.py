@@ -67,14 +67,15 @@ def add_learning_commands(sub: SubParsers) -> None:
         "dataset",
         help="write a LeRobotDataset of a task's scripted expert (needs the LeRobot plugin)",
         description=(
-            "Simulates N episodes of TASK's scripted expert (pick_cube, cube_to_bowl), each from "
+            "Simulates N episodes of TASK's scripted expert (pick_cube, cube_to_bowl, "
+            "lift_cylinder, lift_sphere), each from "
             "its own seed, faster than real time on worker processes, and writes them with "
             "LeRobot's dataset writer: the features lerobot-record writes on "
             "--robot.type=so101_sim. Failed takes are left out and counted (replaced by the "
             "next seeds). Needs lerobot_robot_so101sim installed."
         ),
     )
-    p.add_argument("task", help="pick_cube or cube_to_bowl")
+    p.add_argument("task", help="pick_cube, cube_to_bowl, lift_cylinder or lift_sphere")
     p.add_argument("--episodes", type=int, required=True, help="episodes to write")
     p.add_argument("-o", "--output", required=True, help="the dataset's folder (must not exist)")
     p.add_argument("--repo-id", default="local/so101sim", help="the dataset's repo_id")
@@ -122,7 +123,9 @@ def add_learning_commands(sub: SubParsers) -> None:
         ),
     )
     p.add_argument("policy", metavar="POLICY_PATH", help="the policy's folder (config.json)")
-    p.add_argument("--task", default="pick_cube", help="pick_cube (default) or cube_to_bowl")
+    p.add_argument(
+        "--task", default="pick_cube", help="a task of so101sim.envs.TASKS (default pick_cube)"
+    )
     p.add_argument("--episodes", type=int, default=10, help="episodes (default 10)")
     p.add_argument("--seed", type=int, default=1000, help="first episode's seed (1000)")
     p.add_argument("--workers", type=int, help="worker processes (default: every core)")

@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
-import traceback
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -189,7 +188,11 @@ def split_script_args(argv: list[str]) -> tuple[list[str], list[str] | None]:
 
 
 def cmd_record(args: argparse.Namespace) -> int:
-    from ..lab.handin import run_script, script_line  # imported here: it imports MuJoCo
+    from ..lab.handin import (
+        run_script,
+        script_line,
+        script_traceback,
+    )  # imported here: it imports MuJoCo
     from ..recording import VideoSettings
 
     args.output = record_output(args)
@@ -216,7 +219,8 @@ def cmd_record(args: argparse.Namespace) -> int:
                 raise
             _say(f"so101sim: error: {where}: {exc}", err=True)
             return 2
-        traceback.print_exc()  # the script's own error, as Python shows it
+        # the script's own error, as `python SCRIPT` shows it (not so101sim's frames)
+        print(script_traceback(exc, args.script), end="", file=sys.stderr)
         print(f"so101sim: {where or args.script} raised {type(exc).__name__}", file=sys.stderr)
         return 1
     if run.message:

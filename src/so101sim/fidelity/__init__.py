@@ -11,6 +11,10 @@
   trusting nothing in them.
 
 scipy and pyarrow are optional (``pip install 'so101sim[fidelity]'``); what needs them says so.
+
+May import: ``so101sim.recording`` (writing a replay's outputs), ``so101sim.motion``,
+``so101sim.sim``, ``so101sim.kinematics``, ``so101sim.model``, ``so101sim.units`` and the base
+modules.
 """
 
 from __future__ import annotations

@@ -39,11 +39,10 @@ import numpy as np
 
 from ..errors import JointValueError
 from ..model.load import default_units
-from ..model.twin import contact_twin
 from ..preflight.check import Thresholds, describe
 from ..preflight.judge import judge
 from ..preflight.measure import StepRecorder, collect
-from ..preflight.states import StateRecorder, vectorisable
+from ..preflight.states import StateRecorder, derivable
 from ..sim.simulation import Observer, SegmentResult, Simulation
 from ..units import JOINT_NAMES, Pose
 from .arming import attached
@@ -169,7 +168,7 @@ def _watched(
     forces that do not follow from the states, and no twin) is watched after every step
     instead (:class:`StepRecorder`)."""
     rec: StateRecorder | StepRecorder
-    exact = vectorisable(sim.model) or contact_twin(sim.model) is not None
+    exact = derivable(sim.model)  # the same test as so101sim check's
     rec = StateRecorder(sim.model) if exact else StepRecorder(sim.model)
     seg = run([rec])
     th = Thresholds()

@@ -24,11 +24,8 @@ measure each as the single check does.
 
 The figures are then judged by :func:`so101sim.preflight.judge.judge`, the single check's own.
 
-(About 440 lines: the block-by-block reduction mirrors :mod:`so101sim.preflight.measure` figure
-for figure, and is kept next to the rollout loop that feeds it.)
-
-Long on purpose: one variant's run (the worker, its per-step accumulator and the contact
-namer) is one algorithm, each part written against the others' arrays.
+The block-by-block reduction, figure for figure the single check's
+(:mod:`so101sim.preflight.measure`), is :mod:`so101sim.preflight.accumulate`.
 """
 
 from __future__ import annotations
@@ -49,12 +46,13 @@ from ..model.build import Addition, build, recipe
 from ..model.load import arm_index, arm_units
 from ..motion.plan import plan_segments
 from ..motion.segments import Hold, Segment
-from ..sim.limited import ShortMove, check_limited_moves
+from ..sim.limited import ShortMove
 from ..sim.simulation import Simulation
 from ..sim.stepping import Observer, advance, step_block
-from ..units import GRIPPER, JOINT_NAMES, ArmUnits, Pose
+from ..units import GRIPPER, JOINT_NAMES, Pose
+from .accumulate import Accumulator, run_lengths
 from .judge import Finding, Thresholds, judge
-from .measure import Contact, JointCheck, Measurements, StepCheck
+from .measure import Contact, Measurements
 from .variants import Variant, apply_variant
 
 BLOCK = 4096
@@ -92,11 +90,9 @@ def plan_motion(
 ) -> MotionPlan:
     """Plan ``steps`` from ``start`` (checked as the single check checks them)."""
     sim = Simulation(model, initial_pose=start)
-    stretched = check_limited_moves(
-        sim.commanded_array(), steps, sim.timestep, units=sim.units, strict=strict
-    )
     units = sim.units
-    planned = plan_segments(model, steps, sim.commanded_array())  # once, every segment checked
+    # once, every segment checked (with ``strict``, a limited move too short refused)
+    planned = plan_segments(model, steps, sim.commanded_array(), strict=strict)
     rows = [np.asarray(p.targets) for p in planned.segments]
     sizes = [len(r) for r in rows]
     return MotionPlan(
@@ -106,7 +102,7 @@ def plan_motion(
         targets=units.to_radians(np.vstack(rows)),
         bounds=np.concatenate([[0], np.cumsum(sizes)]).astype(int),
         start=units.to_radians(units.pose_to_array(start)),
-        stretched=tuple(stretched),
+        stretched=planned.stretched,
     )
 
 
@@ -163,108 +159,6 @@ class VariantOutcome:
     touched: bool
 
 
-class _Accumulator:
-    """Per step of the motion and joint, the single check's figures, block by block."""
-
-    def __init__(self, n: int, units: ArmUnits) -> None:
-        lo, hi = units.limits
-        self.lo, self.hi = lo, hi
-        self.to_lower = np.full((n, 6), np.inf)
-        self.to_upper = np.full((n, 6), np.inf)
-        self.peak = np.zeros((n, 6))
-        self.longest = np.zeros((n, 6), dtype=int)
-        self.sat_end = np.zeros((n, 6))
-        self.track = np.zeros((n, 6))
-        self.track_at = np.zeros((n, 6))
-        self.contact_t = np.full(n, np.nan)
-        self.depth = np.zeros(n)
-        self.ends = np.zeros(n)
-        self.starts = np.zeros(n)
-        self.run = np.zeros(6, dtype=int)
-        self.seen_force = np.zeros((n, 6), dtype=bool)  # the step has seen a sample
-        self.seen_motion = np.zeros((n, 6), dtype=bool)
-
-    def begin(self, j: int, start: np.ndarray) -> None:
-        """Step ``j`` starts from the commanded target ``start`` (counts for its margin)."""
-        self.to_lower[j] = start - self.lo
-        self.to_upper[j] = self.hi - start
-
-    def add_forces(self, j: int, t, effort, runs, found, dist) -> None:
-        """What the single check's step recorder sees in step ``j``: effort, run lengths of
-        saturation, contact count and smallest distance at the times ``t``."""
-        new = ~self.seen_force[j]
-        self.peak[j] = np.maximum(self.peak[j], effort.max(axis=0))
-        k = runs.argmax(axis=0)
-        best = runs[k, range(6)]
-        better = (best > self.longest[j]) | new
-        self.longest[j] = np.where(better, best, self.longest[j])
-        self.sat_end[j] = np.where(better, t[k], self.sat_end[j])
-        self.seen_force[j] = True
-        touching = found > 0
-        if touching.any():
-            if np.isnan(self.contact_t[j]):
-                self.contact_t[j] = t[touching.argmax()]
-            self.depth[j] = max(self.depth[j], float(-dist[touching].min()))
-
-    def add_motion(self, j: int, t, cmd, meas) -> None:
-        """Step ``j``'s commanded and measured poses (arm units) at the times ``t``."""
-        for rows in (cmd, meas):
-            self.to_lower[j] = np.minimum(self.to_lower[j], (rows - self.lo).min(axis=0))
-            self.to_upper[j] = np.minimum(self.to_upper[j], (self.hi - rows).min(axis=0))
-        err = np.abs(cmd - meas)
-        k = err.argmax(axis=0)
-        best = err[k, range(6)]
-        better = (best > self.track[j]) | ~self.seen_motion[j]
-        self.track[j] = np.where(better, best, self.track[j])
-        self.track_at[j] = np.where(better, t[k], self.track_at[j])
-        self.seen_motion[j] = True
-        self.ends[j] = t[-1]
-
-    def steps(self, plan: MotionPlan, dt: float) -> tuple[StepCheck, ...]:
-        out = []
-        for j in range(len(plan.phases)):
-            longest = self.longest[j] * dt
-            sat_start = np.maximum(self.sat_end[j] - longest, self.starts[j])
-            joints = {
-                name: JointCheck(
-                    limit_margin=float(min(self.to_lower[j, i], self.to_upper[j, i])),
-                    limit_side="lower" if self.to_lower[j, i] <= self.to_upper[j, i] else "upper",
-                    peak_effort=float(self.peak[j, i]),
-                    saturated=float(longest[i]),
-                    peak_tracking_error=float(self.track[j, i]),
-                    saturation_time=float(sat_start[i]),
-                    peak_tracking_time=float(self.track_at[j, i]),
-                )
-                for i, name in enumerate(JOINT_NAMES)
-            }
-            contacts = ()
-            if not np.isnan(self.contact_t[j]):
-                depth = max(0.0, float(self.depth[j]))
-                contacts = (Contact("arm", "(see the replay)", float(self.contact_t[j]), depth),)
-            out.append(
-                StepCheck(
-                    index=j + 1,
-                    phase=plan.phases[j],
-                    kind=plan.kinds[j],
-                    line=plan.lines[j],
-                    start_time=float(self.starts[j]),
-                    end_time=float(self.ends[j]),
-                    joints=joints,
-                    contacts=contacts,
-                )
-            )
-        return tuple(out)
-
-
-def _run_lengths(above: np.ndarray, carry: np.ndarray) -> np.ndarray:
-    """Per sample and column: consecutive True samples up to it, counting ``carry`` True
-    samples before the block."""
-    idx = np.arange(1, len(above) + 1)[:, None]
-    last_false = np.maximum.accumulate(np.where(above, 0, idx), axis=0)
-    runs = idx - last_false
-    return np.where(last_false == 0, runs + carry, runs)
-
-
 class Worker:
     """One thread's model copy and data (the kernel keeps a rollout runner per thread); runs
     variants one at a time."""
@@ -315,12 +209,12 @@ class Worker:
         measured = self.measure(v)
         return _outcome(v.index, measured, judge(measured, self.th))
 
-    def _forces_of(self, acc: _Accumulator, limit: np.ndarray):
+    def _forces_of(self, acc: Accumulator, limit: np.ndarray):
         """A function adding sensor rows of step j to ``acc`` (run lengths carried)."""
 
         def add(j: int, t: np.ndarray, sens: np.ndarray) -> None:
             effort = np.abs(sens[:, self.force_adr]) / limit
-            runs = _run_lengths(effort > self.th.max_effort, acc.run)
+            runs = run_lengths(effort > self.th.max_effort, acc.run)
             acc.run = runs[-1]
             found, dist = sens[:, self.contact_adr], sens[:, self.contact_adr + 1]
             acc.add_forces(j, t, effort, runs, found, dist)
@@ -331,7 +225,7 @@ class Worker:
         """Roll ``v`` out and measure it as the single check does (contacts unnamed)."""
         plan, units, dt = self.plan, self.units, self.base.opt.timestep
         start = units.from_radians(plan.start - np.radians(v.zero_offset_deg))
-        acc = _Accumulator(len(plan.phases), units)
+        acc = Accumulator(len(plan.phases), units)
         last_cmd = start  # the commanded target before the first step
         offset, s0 = self._start(v)  # writes the variant into the model: read it after
         limit = np.abs(self.m.actuator_forcerange[self.idx.actuator, 1])
@@ -353,7 +247,8 @@ class Worker:
                 force_of(j, t[sl], sens[sl])
                 acc.add_motion(j, t[sl], cmd[sl], meas[sl])
             prev_t, last_cmd = float(t[-1]), cmd[-1]
-        return Measurements(acc.steps(plan, dt), units.limits_dict(), plan.stretched)
+        steps = acc.steps(plan.phases, plan.kinds, plan.lines, dt)
+        return Measurements(steps, units.limits_dict(), plan.stretched)
 
 
 def _outcome(index: int, measured: Measurements, findings: tuple[Finding, ...]) -> VariantOutcome:

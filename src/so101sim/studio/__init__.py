@@ -14,6 +14,10 @@ Works on a server with no display and no GPU (the browser draws); needs the ``we
 * :mod:`.live`: :class:`StudioObserver` (a run, paced to the wall clock) and
   :class:`StudioViewer` (``launch_passive`` for a script);
 * :mod:`.pose`: :class:`PoseStudio` (one slider per joint, the tip, copy buttons).
+
+May import: ``so101sim.viewer`` (the pose finder's watcher and scene),
+``so101sim.recording``, ``so101sim.motion``, ``so101sim.sim``, ``so101sim.kinematics``,
+``so101sim.model``, ``so101sim.units`` and the base modules.
 """
 
 from __future__ import annotations
