@@ -4,7 +4,9 @@ LeRobot's calibration found by --robot-id; explicit held-out episodes."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import re
 
 import numpy as np
 import pytest
@@ -16,7 +18,7 @@ from fidelity_helpers import as_read, commands, record, write_lerobot
 from so101sim.cli import main
 from so101sim.errors import CalibrationError
 from so101sim.fidelity.calibration import lerobot_calibration_path
-from so101sim.fidelity.compare import compare
+from so101sim.fidelity.compare import compare, plot_heading
 from so101sim.fidelity.logs import ArmLog, Episode
 from so101sim.fidelity.windows import blocked_gripper, still_frames, worst_windows
 from so101sim.model.arm import load_profile
@@ -81,7 +83,18 @@ def test_compare_splits_holds_from_moves_and_leaves_a_blocked_gripper_out(tmp_pa
     assert main(["compare", str(root), "--units", "degrees", "--plot", str(png)]) == 0
     out = capsys.readouterr().out
     assert "holds" in out and "moves" in out and "worst window: episode 0" in out
+    body = re.search(r"body joints: sim mae ([0-9.]+) deg, command mae ([0-9.]+) deg", out)
+    assert body is not None, out
+    rows = {ln.split()[0]: ln.split() for ln in out.splitlines() if ln.split()[:1] != []}
+    names = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
+    assert float(body[1]) == pytest.approx(sum(float(rows[n][1]) for n in names) / 5, abs=0.01)
     assert png.stat().st_size > 1000
+    # the plot says which episode it draws and what its shading means
+    assert plot_heading(res, True) == (
+        "episode 0\nshaded red: the worst windows of error; blue: the real gripper blocked"
+    )
+    two = dataclasses.replace(res, episodes=[2, 3], worst=[])
+    assert plot_heading(two, False).startswith("episode 2 (the first of the 2 compared; each")
 
 
 def test_robot_id_reads_lerobots_calibration_folder(tmp_path, monkeypatch):
@@ -110,14 +123,20 @@ def test_fit_holds_out_the_episodes_it_is_told(tmp_path, capsys):
     root = write_lerobot(tmp_path / "ds", eps)
     out = tmp_path / "a.toml"
     argv = ["fit", str(root), "-o", str(out), "--units", "degrees", "--iterations", "2"]
-    assert main([*argv, "--holdout", "0", "--episodes", "1-2"]) == 2
-    assert "--episodes 1-2 leaves out" in capsys.readouterr().err
     code = main([*argv, "--holdout", "0"])
     text = capsys.readouterr().out
     assert "fitted on episodes 1,2" in text and "held-out episodes 0" in text
     assert "default" in text and "commands" in text
     assert code in (0, 1)  # 1: refused as worse than the default (then nothing written)
     assert out.exists() == (code == 0)
+    # --episodes the fitted ones, --holdout the held-out ones, even when --episodes leaves it out
+    code = main([*argv, "--force", "--episodes", "1-2", "--holdout", "0"])
+    text = capsys.readouterr().out
+    assert code == 0, text
+    assert "fitted on episodes 1,2" in text and "held-out episodes 0" in text
+    # an episode the log does not have is still refused
+    assert main([*argv, "--force", "--episodes", "1-2", "--holdout", "5"]) == 2
+    assert "has no episode 5" in capsys.readouterr().err
 
 
 def test_fit_refuses_a_profile_worse_than_the_default_on_held_out_episodes(tmp_path, capsys):

@@ -215,6 +215,20 @@ def compare(
     )  # fmt: skip
 
 
+def plot_heading(result: CompareResult, blocked: bool) -> str:
+    """The plot's heading: which episode it draws (the first compared), that the panels' mae
+    are over every compared episode, and what the shading means."""
+    eps = result.episodes
+    head = f"episode {eps[0]}" + (
+        f" (the first of the {len(eps)} compared; each panel's mae is over all of them)"
+        if len(eps) > 1
+        else ""
+    )
+    keys = ["shaded red: the worst windows of error"] if result.worst else []
+    keys += ["blue: the real gripper blocked"] if blocked else []
+    return head + ("\n" + "; ".join(keys) if keys else "")
+
+
 def plot_overlay(result: CompareResult, path: str | Path, *, force: bool = False) -> Path:
     """Real, sim and command per joint (the first episode kept in ``result.traces``), written
     to ``path`` (PNG) atomically."""
@@ -250,8 +264,7 @@ def plot_overlay(result: CompareResult, path: str | Path, *, force: bool = False
             fontsize=9,
         )
     axes[0].legend(loc="upper right", fontsize=8)
-    if result.worst:
-        fig.suptitle("shaded red: the worst windows of error (compare's worst_windows)", fontsize=9)
+    fig.suptitle(plot_heading(result, bool(tr["blocked"].any())), fontsize=9)
     axes[-1].set_xlabel("time, s")
     fig.tight_layout()
     return write_atomically(
