@@ -2,7 +2,7 @@
 --threads 2`` killed with SIGTERM or SIGHUP segfaulted (exit 139) in 4 of 9 runs. A worker
 thread was still inside MuJoCo (freeing its ``MjData``) when the interpreter finalised: the
 rollout now stops its workers and waits until each has let go of MuJoCo before the command
-returns, however it was interrupted (:func:`so101sim.preflight.rollout._run_threads`)."""
+returns, however it was interrupted (:func:`so101sim.preflight.threads.run_threads`)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ import threading
 import numpy as np
 import pytest
 
-from so101sim.preflight import rollout
+from so101sim.preflight import threads as preflight_threads
 
 STARTED = "rolling out"  # the rollout's log line (with -v): the workers are starting
 
@@ -80,7 +80,7 @@ def test_an_interrupt_while_waiting_stops_the_workers_and_waits_for_them() -> No
     previous = signal.signal(signal.SIGUSR1, interrupt)
     try:
         with pytest.raises(Interrupt):
-            rollout._run_threads(work, 2, errors)
+            preflight_threads.run_threads(work, 2, errors)
     finally:
         signal.signal(signal.SIGUSR1, previous)
     assert len(finished) == 2  # both had ended before the interrupt went on up

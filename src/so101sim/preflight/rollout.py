@@ -30,13 +30,11 @@ The block-by-block reduction, figure for figure the single check's
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import logging
 import math
-import signal
 import threading
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -57,6 +55,7 @@ from ..units import GRIPPER, JOINT_NAMES, Pose
 from .accumulate import Accumulator, run_lengths
 from .judge import Finding, Thresholds, judge
 from .measure import Contact, Measurements
+from .threads import Stopped, run_threads
 from .variants import Variant, apply_variant
 
 log = logging.getLogger(__name__)
@@ -177,7 +176,7 @@ class Worker:
         stop: Callable[[], bool] | None = None,
     ) -> None:
         self.base, self.plan, self.th = base, plan, thresholds
-        self.stop = stop  # asked before each block: True ends the run (_Stopped)
+        self.stop = stop  # asked before each block: True ends the run (Stopped)
         self.m = copy.copy(base)
         self.d = mujoco.MjData(self.m)
         self.idx = arm_index(base)
@@ -211,7 +210,7 @@ class Worker:
         targets, n = self.plan.targets, len(self.plan.targets)
         for a in range(0, n, BLOCK):
             if self.stop is not None and self.stop():
-                raise _Stopped
+                raise Stopped
             k = min(BLOCK, n - a)
             ctrl = np.zeros((k, m.nu))
             ctrl[:, idx.actuator] = targets[a : a + k] - offset
@@ -308,7 +307,7 @@ def run_variants(
                 if i is None:
                     return
                 results[i] = worker.run(variants[i])
-        except _Stopped:
+        except Stopped:
             return
         except BaseException as exc:  # re-raised on the calling thread
             errors.append(exc)
@@ -320,73 +319,10 @@ def run_variants(
     if count == 1:
         work()
     else:
-        _run_threads(work, count, errors)
+        run_threads(work, count, errors)
     if errors:
         raise errors[0]
     return [r for r in results if r is not None]
-
-
-@contextlib.contextmanager
-def _signals_held() -> Iterator[None]:
-    """Hold SIGINT, SIGTERM and SIGHUP back (POSIX, the main thread) while the block runs; one
-    that came meanwhile is handled as the block ends. The threads started meanwhile inherit
-    the mask: they never take a signal (Python handles them in the main thread anyway)."""
-    mask = getattr(signal, "pthread_sigmask", None)
-    if mask is None or threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    held = {s for n in ("SIGINT", "SIGTERM", "SIGHUP") if (s := getattr(signal, n, None))}
-    previous = mask(signal.SIG_BLOCK, held)
-    try:
-        yield
-    finally:
-        mask(signal.SIG_SETMASK, previous)
-
-
-class _Stopped(Exception):
-    """A worker told to stop (another failed, or the caller was interrupted)."""
-
-
-def _run_threads(work: Callable[[], None], count: int, errors: list[BaseException]) -> None:
-    """Run ``work`` on ``count`` threads and wait until each has finished with MuJoCo,
-    whatever happens meanwhile.
-
-    A signal (Ctrl-C, SIGTERM, SIGHUP: the CLI raises them in this thread) or any error while
-    waiting stops the workers (they look at ``errors`` between blocks of steps, so each ends
-    within one block) and still waits for them before it goes on up: a thread inside MuJoCo
-    (a call, or freeing its ``MjData``) when the interpreter finalises crashed the process
-    (exit 139, issue 30). Each worker says it is done with an event of its own, set after its
-    MuJoCo objects are freed: ``Thread.join`` cannot be trusted once interrupted (Python 3.11
-    may then mark a running thread as stopped). A second interrupt while they stop waits too."""
-    done = [threading.Event() for _ in range(count)]
-
-    def run(k: int) -> None:
-        try:
-            work()
-        finally:
-            done[k].set()
-
-    pending: BaseException | None = None
-    pool = [threading.Thread(target=run, args=(k,), daemon=True) for k in range(count)]
-    started: list[threading.Event] = []
-    try:
-        with _signals_held():  # a signal in Thread.start would hide a started thread
-            for k, th in enumerate(pool):
-                th.start()
-                started.append(done[k])
-        for event in done:
-            event.wait()
-    except BaseException as exc:
-        pending = exc
-        errors.append(exc)  # the workers stop at their next block
-    while not all(event.is_set() for event in started):
-        try:
-            for event in started:
-                event.wait()
-        except BaseException as exc:  # another signal: still wait for them (one block each)
-            pending = pending or exc
-    if pending is not None:
-        raise pending
 
 
 class _ContactNamer(Observer):

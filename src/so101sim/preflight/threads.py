@@ -1,0 +1,79 @@
+"""The robust preflight's worker threads: started with the termination signals held back and
+always waited for, however the caller is interrupted (a thread inside MuJoCo when the
+interpreter finalises crashed the process: exit 139, issue 30).
+
+May import: the standard library only.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+from collections.abc import Callable, Iterator
+
+
+@contextlib.contextmanager
+def signals_held() -> Iterator[None]:
+    """Hold SIGINT, SIGTERM and SIGHUP back (POSIX, the main thread) while the block runs; one
+    that came meanwhile is handled as the block ends. The threads started meanwhile inherit
+    the mask: they never take a signal (Python handles them in the main thread anyway)."""
+    mask = getattr(signal, "pthread_sigmask", None)
+    if mask is None or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {s for n in ("SIGINT", "SIGTERM", "SIGHUP") if (s := getattr(signal, n, None))}
+    previous = mask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        mask(signal.SIG_SETMASK, previous)
+
+
+class Stopped(Exception):
+    """A worker told to stop (another failed, or the caller was interrupted)."""
+
+
+def run_threads(work: Callable[[], None], count: int, errors: list[BaseException]) -> None:
+    """Run ``work`` on ``count`` threads and wait until each has finished with MuJoCo,
+    whatever happens meanwhile.
+
+    A signal (Ctrl-C, SIGTERM, SIGHUP: the CLI raises them in this thread) or any error while
+    waiting stops the workers (they look at ``errors`` between blocks of steps, so each ends
+    within one block) and still waits for them before it goes on up: a thread inside MuJoCo
+    (a call, or freeing its ``MjData``) when the interpreter finalises crashed the process
+    (exit 139, issue 30). Each worker says it is done with an event of its own, set after its
+    MuJoCo objects are freed: ``Thread.join`` cannot be trusted once interrupted (Python 3.11
+    may then mark a running thread as stopped). A second interrupt while they stop waits too."""
+    done = [threading.Event() for _ in range(count)]
+
+    def run(k: int) -> None:
+        try:
+            work()
+        finally:
+            done[k].set()
+
+    pending: BaseException | None = None
+    pool = [threading.Thread(target=run, args=(k,), daemon=True) for k in range(count)]
+    started: list[threading.Event] = []
+    try:
+        with signals_held():  # a signal in Thread.start would hide a started thread
+            for k, th in enumerate(pool):
+                th.start()
+                started.append(done[k])
+        for event in done:
+            event.wait()
+    except BaseException as exc:
+        pending = exc
+        errors.append(exc)  # the workers stop at their next block
+    while not all(event.is_set() for event in started):
+        try:
+            for event in started:
+                event.wait()
+        except BaseException as exc:  # another signal: still wait for them (one block each)
+            pending = pending or exc
+    if pending is not None:
+        raise pending
+
+
+__all__ = ["Stopped", "run_threads", "signals_held"]
