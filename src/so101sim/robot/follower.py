@@ -51,7 +51,6 @@ from __future__ import annotations
 
 import logging
 import threading
-import time
 import weakref
 from collections.abc import Mapping
 from pprint import pformat
@@ -77,37 +76,12 @@ from .config import (
 )
 from .helpers import MOTOR_KEYS
 from .scene import before_observation, register, unregister
-from .threads import RobotThreads
+from .threads import FollowerClock, RobotThreads
 
 log = logging.getLogger(__name__)
 
 _CLAMP_MESSAGE = "Relative goal position magnitude had to be clamped to be safe.\n%s"  # LeRobot's
 _CLIP_MESSAGE = "Goal position beyond the joint limits was clipped to the limits.\n%s"
-
-
-class _FollowerClock:
-    """The follower's own time as a :class:`so101sim.robot.helpers.Clock` (what
-    ``robot.clock`` gives the helpers; not :class:`so101sim.lab.simclock.SimClock`, which
-    stands in for the ``time`` module in a student's script).
-
-    Lockstep: ``sleep`` advances the physics. Real time: ``sleep`` waits on the wall clock
-    (scaled by ``speed``) while the background thread advances it.
-    """
-
-    def __init__(self, robot: SO101SimFollower) -> None:
-        self._robot = robot
-
-    def now(self) -> float:
-        return self._robot.time
-
-    def sleep(self, seconds: float) -> None:
-        if seconds <= 0:
-            return
-        robot = self._robot
-        if robot.config.mode == "lockstep":
-            robot.step(seconds)
-        else:
-            time.sleep(seconds / robot.config.speed)
 
 
 class SO101SimFollower:
@@ -147,7 +121,7 @@ class SO101SimFollower:
         self._connected = False
         self._runner = RobotThreads(self._sim, str(self), self.config.speed)  # until connect()
         self._finalizer: weakref.finalize | None = None
-        self._clock = _FollowerClock(self)
+        self._clock = FollowerClock(self)
 
     # ------------------------------------------------------------------ LeRobot's interface
     def __str__(self) -> str:
@@ -324,7 +298,7 @@ class SO101SimFollower:
             return self._sim.time
 
     @property
-    def clock(self) -> _FollowerClock:
+    def clock(self) -> FollowerClock:
         """This arm's clock (simulated time) for :mod:`so101sim.robot.helpers`."""
         return self._clock
 

@@ -153,4 +153,29 @@ def _release(threads: RobotThreads) -> None:
     threads.stop()
 
 
-__all__ = ["BLOCK_SECONDS", "VIEWER_PERIOD", "RobotThreads"]
+__all__ = ["BLOCK_SECONDS", "VIEWER_PERIOD", "FollowerClock", "RobotThreads"]
+
+
+class FollowerClock:
+    """The follower's own time as a :class:`so101sim.robot.helpers.Clock` (what
+    ``robot.clock`` gives the helpers; not :class:`so101sim.lab.simclock.SimClock`, which
+    stands in for the ``time`` module in a student's script).
+
+    Lockstep: ``sleep`` advances the physics. Real time: ``sleep`` waits on the wall clock
+    (scaled by ``speed``) while the background thread advances it.
+    """
+
+    def __init__(self, robot: Any) -> None:  # the SO101SimFollower (it imports this module)
+        self._robot = robot
+
+    def now(self) -> float:
+        return self._robot.time
+
+    def sleep(self, seconds: float) -> None:
+        if seconds <= 0:
+            return
+        robot = self._robot
+        if robot.config.mode == "lockstep":
+            robot.step(seconds)
+        else:
+            time.sleep(seconds / robot.config.speed)
