@@ -30,7 +30,7 @@ def _name(m: mujoco.MjModel, geom: int) -> str:
     name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, geom)
     if not name:
         name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.geom_bodyid[geom]))
-    return f"the {name}" if name else "the scene"
+    return f"the {name.replace('_', ' ')}" if name else "the scene"
 
 
 def _collides(m: mujoco.MjModel, geom: int) -> bool:
