@@ -10,10 +10,20 @@ Works on a server with no display and no GPU (the browser draws); needs the ``we
     studio.finish()                         # the page's timeline replays the run
     studio.close()
 
-* :mod:`.server`: :class:`Studio` (the server, the page, the run's timeline);
+* :mod:`.server`: :class:`Studio` (the server, the page, the run's player);
+* :mod:`.timeline`: a run's frames, bounded in memory (``Frame``, ``Timeline``);
+* :mod:`.net`: the host and port checked, the addresses it listens on (warned beyond this
+  machine), the guard that refuses a websocket from another site;
+* :mod:`.look`: the model's floor, sky and lights, the camera on the arm, the docked panel;
+* :mod:`.ready`: the page's "the arm is drawn" signal (``#so101sim-ready``);
 * :mod:`.live`: :class:`StudioObserver` (a run, paced to the wall clock) and
   :class:`StudioViewer` (``launch_passive`` for a script);
-* :mod:`.pose`: :class:`PoseStudio` (one slider per joint, the tip, copy buttons).
+* :mod:`.pose`: :class:`PoseStudio` (one slider per joint, the tip, copy buttons, warnings
+  when the arm is in the floor or the table).
+
+An output layer: may import ``so101sim.sim``, ``so101sim.kinematics``, ``so101sim.model``,
+``so101sim.units``, the base modules and ``so101sim.viewer`` (the pose finder's formats and
+warnings); viser and mjviser only when a studio starts.
 """
 
 from __future__ import annotations
