@@ -19,8 +19,8 @@ FLOOR_SIZE = 8.0  # metres: the side of the floor drawn for an infinite plane
 PANEL_WIDTH = 360  # pixels: the panel docked at the right
 # The default view: the arm (about 0.45 m tall when raised) seen from the front-left, a little
 # to the right of the look-at point so that it sits in the middle of the space the panel leaves
-CAMERA_POSITION = (0.55, 0.42, 0.36)
-CAMERA_LOOK_AT = (0.10, 0.0, 0.14)
+CAMERA_POSITION = (0.46, 0.35, 0.31)
+CAMERA_LOOK_AT = (0.10, 0.0, 0.13)
 
 
 def _rgb(values: Any) -> tuple[int, int, int]:

@@ -142,7 +142,8 @@ class Studio:
     def _build_panel(self, controls: bool) -> None:
         gui = self.server.gui
         self.status = gui.add_markdown("**t = 0.000 s**")
-        with gui.add_folder("Angles (commanded, measured)"):
+        # the pose finder's sliders say the angles already: its table starts folded
+        with gui.add_folder("Angles (commanded, measured)", expand_by_default=controls):
             self.angles = gui.add_markdown("")
         if not controls:
             self.play_button = self.pause_button = self.restart_button = None
