@@ -34,7 +34,7 @@ def browser(tmp_path):
         "--disable-component-update",
         "--disable-sync",
         "--disable-dev-shm-usage",
-        "--window-size=1280,800",
+        "--window-size=1024,700",  # fewer pixels for software WebGL to draw
         f"--user-data-dir={tmp_path / 'chromium-profile'}",
     ):
         options.add_argument(flag)
@@ -42,6 +42,9 @@ def browser(tmp_path):
     driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
     driver.set_page_load_timeout(300)
     driver.set_script_timeout(300)
+    # selenium's own HTTP wait for chromedriver's answer (120 s by default): a starved
+    # renderer can take longer than that to answer one command
+    driver.command_executor.client_config.timeout = 300
     try:
         yield driver
     finally:

@@ -161,8 +161,15 @@ class OriginGuard:
 
     def install(self, viser_server: Any) -> None:
         """Put the guard first among the websocket server's connect callbacks."""
-        infra = viser_server._websock_server
-        infra._client_connect_cb.insert(0, self._on_connect)
+        try:  # viser has no public hook: its websocket server's list (viser 1.x)
+            infra = viser_server._websock_server
+            infra._client_connect_cb.insert(0, self._on_connect)
+            infra._live_connections  # noqa: B018 (read on each connection: there, or fail now)
+        except AttributeError:
+            raise StudioError(
+                "this viser version offers no way to check a websocket's Origin, so the studio "
+                "would accept pages from any site; expected viser 1.x: pip install 'viser<2'"
+            ) from None
         self._infra = infra
 
     async def _on_connect(self, client: Any) -> None:

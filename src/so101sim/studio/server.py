@@ -133,8 +133,9 @@ class Studio:
     def url(self) -> str:
         return page_url(self.host, self.port)
 
-    def _repr_html_(self) -> str:  # Jupyter shows the studio as a link
-        return f'<a href="{self.url}" target="_blank">{self.title}: {self.url}</a>'
+    def _repr_html_(self) -> str:  # Jupyter shows the studio as a link (and its warning)
+        warning = f"<br><b>warning</b>: {self.warning}" if self.warning else ""
+        return f'<a href="{self.url}" target="_blank">{self.title}: {self.url}</a>{warning}'
 
     def __repr__(self) -> str:
         return f"Studio({self.url})"
