@@ -62,6 +62,9 @@ PATH_OPTIONS = {  # option -> the suffix of the file it names
     "motion": ".toml",
     "script": ".py",
     "folder": "",
+    "handin": ".csv",
+    "--video": ".mp4",
+    "--summary": ".csv",
 }
 TEXT_OPTIONS = {"--camera", "--title", "--id", "--port", "--ray", "--lookat", "task", "action"}
 
@@ -92,6 +95,7 @@ def _bases(tmp: Path) -> dict[str, list[str]]:
     return {
         "run": ["run", "--headless", str(motion)],
         "compare": ["compare", str(log)],
+        "grade": ["grade", str(log)],
         # without the LeRobot plugins (the core's venv) these two say what to install, exit 2
         "dataset": ["dataset", "pick_cube", "--episodes", "1", "-o", str(tmp / "out" / "ds")],
         "eval": ["eval", str(tmp / "policy"), "--episodes", "1"],
@@ -154,9 +158,10 @@ def _with(base: list[str], action: argparse.Action, flag: str, value: str) -> li
             i = argv.index(short[0])
             return [*argv[: i + 1], value, *argv[i + 2 :]]
         return [*argv, f"{flag}={value}"]  # '=' so that a value starting with '-' is a value
-    # a positional: the base's word after the command (motion, script, folder, task, action)
+    # a positional: the base's word after the command (motion, script, folder, task, action,
+    # handin)
     positionals = [w for w in base[1:] if not w.startswith("-")]
-    if positionals and action.dest in ("motion", "script", "folder", "task", "action"):
+    if positionals and action.dest in ("motion", "script", "folder", "task", "action", "handin"):
         i = base.index(positionals[0])
         return [*base[:i], value, *base[i + 1 :]]
     return [*base, "--", value] if value.startswith("-") else [*base, value]

@@ -20,7 +20,7 @@ from so101sim.model import load_model, scene_path
 from so101sim.model.arm import (
     PROFILE_DEFAULT,
     apply_profile,
-    default_profile,
+    fill_delay_history,
     load_profile,
     profile_key,
     profile_toml,
@@ -96,10 +96,12 @@ def test_scenes_and_the_preflight_sensor_model_get_the_profile():
     np.testing.assert_allclose(stiffness(sensor_model(scene_path(), "official")), 998.22)
 
 
-def test_default_profile_block_changes_what_none_means():
-    with default_profile("official") as prof:
-        assert prof.name == "official" and load_profile(None).name == "official"
-        np.testing.assert_allclose(stiffness(load_model()), 998.22)
+def test_there_is_no_global_override_of_the_default_profile():
+    """The default is one constant (issue 30: no ``default_profile`` block): what None means
+    never changes while a program runs."""
+    import so101sim.model.arm as arm_module
+
+    assert not hasattr(arm_module, "default_profile")
     assert load_profile(None).name == "sts3215"
 
 
@@ -163,25 +165,49 @@ def test_check_variants_takes_arm(capsys):
     assert worst["official"] < 1.0 < 5.0 < worst["sts3215"]
 
 
-def test_record_arm_applies_to_the_scripts_own_models(tmp_path, capsys):
+def plain_model() -> mujoco.MjModel:
+    return mujoco.MjModel.from_xml_path(str(scene_path()))
+
+
+def test_record_arm_runs_the_scripts_own_model_with_the_profile(tmp_path, capsys):
+    """record --arm leaves MuJoCo's loader alone (the script's model has the file's
+    actuators) and runs the script's (m, d) with the profile's servos; without --arm the
+    script's model runs as it is, and the run names its servo model."""
     script = tmp_path / "probe.py"
     script.write_text(
         "import mujoco, mujoco.viewer\n"
-        "from so101sim.model import scene_path, load_model\n"
+        "from so101sim.model import scene_path\n"
         "m = mujoco.MjModel.from_xml_path(str(scene_path()))\n"
-        "print('KP', -m.actuator_biasprm[1, 1], -load_model().actuator_biasprm[1, 1])\n"
+        "print('KP', m.actuator_gainprm[1, 0])\n"
         "d = mujoco.MjData(m)\n"
+        "d.qpos[2] = d.ctrl[2] = 1.2  # the elbow bent, commanded to stay\n"
         "with mujoco.viewer.launch_passive(m, d) as v:\n"
-        "    mujoco.mj_step(m, d); v.sync()\n"
+        "    d.ctrl[2] = 0.0  # then a step to 0\n"
+        "    for _ in range(300):\n"
+        "        mujoco.mj_step(m, d); v.sync()\n"
+        "print('ELBOW', d.qpos[2])\n"
     )
     out = tmp_path / "p.mp4"
     base = ["record", str(script), "-o", str(out), "--width", "64", "--height", "48", "--force"]
-    assert main([*base, "--arm", "sts3215"]) == 0
-    kp = [float(v) for v in capsys.readouterr().out.split("KP")[1].split()[:2]]
-    assert kp == pytest.approx([STS_KP, STS_KP])
-    assert main(base) == 0  # no --arm: the script's file as it is (the vendored actuators)
-    kp = [float(v) for v in capsys.readouterr().out.split("KP")[1].split()[:2]]
-    assert kp[0] == pytest.approx(998.22)
+    elbow = {}
+    for arm in ("sts3215", None):
+        assert main([*base, "--arm", arm] if arm else base) == 0
+        captured = capsys.readouterr()
+        assert float(captured.out.split("KP")[1].split()[0]) == pytest.approx(998.22)
+        elbow[arm] = float(captured.out.split("ELBOW")[1].split()[0])
+        said = [line for line in captured.err.splitlines() if "--arm" in line]
+        assert len(said) == (1 if arm else 0), captured.err
+        assert f"servo model: {arm or 'official'}" in captured.out
+    # each run is, step for step, that model's own physics (the profile's: its servos' goal
+    # history filled with the targets the script had when it opened the viewer)
+    for arm, model in (("sts3215", load_model(arm="sts3215")), (None, plain_model())):
+        d = mujoco.MjData(model)
+        d.qpos[2] = d.ctrl[2] = 1.2
+        fill_delay_history(model, d)
+        d.ctrl[2] = 0.0
+        mujoco.mj_step(model, d, nstep=300)
+        assert elbow[arm] == pytest.approx(d.qpos[2], abs=1e-9), arm
+    assert abs(elbow["sts3215"] - elbow[None]) > 0.05
     assert mujoco.MjModel.from_xml_path(str(scene_path())).actuator_gainprm[0, 0] > 900
 
 

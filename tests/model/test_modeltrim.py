@@ -169,17 +169,17 @@ def test_an_unexpected_error_while_trimming_keeps_the_full_model(full, monkeypat
 
 
 def test_load_model_physics_only_comes_from_its_own_cache_entry(tmp_path, monkeypatch):
-    import so101sim.model.load as model_module
+    import so101sim.model.build as model_module
 
     monkeypatch.setenv("SO101SIM_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(model_module, "_cache", {})
+    monkeypatch.setattr(model_module, "_built", {})
     m = load_model(physics_only=True)
     assert modeltrim.is_physics_only(m) and m.nmeshface < 100_000
     assert len(list((tmp_path / "cache").glob("*-physics*.mjb"))) == 1
-    monkeypatch.setattr(model_module, "_cache", {})
+    monkeypatch.setattr(model_module, "_built", {})
     assert modeltrim.is_physics_only(load_model(physics_only=True))  # read back from the entry
     assert not modeltrim.is_physics_only(load_model())  # the full model is another entry
-    monkeypatch.setattr(model_module, "_cache", {})
+    monkeypatch.setattr(model_module, "_built", {})
     monkeypatch.setenv("SO101SIM_NO_CACHE", "1")
     assert not modeltrim.is_physics_only(load_model(physics_only=True))  # no cache: full
 

@@ -24,7 +24,8 @@ def test_csv_has_one_row_per_control_step_and_ends_at_the_final_target(tmp_path)
     assert header == rec.csv_columns()
     assert header[:2] == ["time", "phase"]
     assert header[2:8] == [f"{n}_commanded" for n in JOINT_NAMES]
-    assert header[8:] == [f"{n}_measured" for n in JOINT_NAMES]
+    assert header[8:14] == [f"{n}_measured" for n in JOINT_NAMES]
+    assert header[14:] == ["servo_model"] and rows[0][14] == "sts3215"
     steps = sum(s.steps for s in result.segments)
     assert len(rows) == steps == round(6.0 / sim.timestep)
     times = np.array([float(row[0]) for row in rows])
@@ -34,7 +35,7 @@ def test_csv_has_one_row_per_control_step_and_ends_at_the_final_target(tmp_path)
     commanded = dict(zip(JOINT_NAMES, map(float, last[2:8]), strict=True))
     for name in JOINT_NAMES:
         assert commanded[name] == pytest.approx(STARTING_POSE[name], abs=1e-5)
-    measured = np.array([float(v) for v in last[8:]])
+    measured = np.array([float(v) for v in last[8:14]])
     np.testing.assert_allclose(measured, result.segments[-1].measured[-1], atol=1e-5)
 
 

@@ -119,9 +119,12 @@ class EvalReport:
         return [o.success_time_s for o in self.outcomes if o.success_time_s is not None]
 
     def as_dict(self) -> dict[str, Any]:
+        from so101sim.model import servo_model  # imported here: it imports MuJoCo
+
         times = self.success_times
         return {
             "task": self.task,
+            "servo_model": servo_model(),  # the environments' default arm profile
             "randomize": self.randomize,
             "episodes": self.episodes,
             "successes": self.successes,

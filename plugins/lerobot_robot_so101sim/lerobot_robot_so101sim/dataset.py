@@ -363,9 +363,12 @@ def generate_dataset(
                 if ep.randomization:
                     randomization[str(ep.seed)] = ep.randomization
         dataset.finalize()
+        from so101sim.model import servo_model  # imported here: it imports MuJoCo
+
         meta = {
             "generator": "so101sim dataset",
             "task": settings.task,
+            "servo_model": servo_model(),  # the environments' default arm profile
             "settings": _jsonable(asdict(settings)),
             "episode_seeds": kept,
             "failed_seeds": failed,

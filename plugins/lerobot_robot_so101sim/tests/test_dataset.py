@@ -44,6 +44,7 @@ def test_the_same_seeds_give_the_same_episodes_whatever_the_worker_count(tmp_pat
     assert metas[0]["randomization"] == metas[1]["randomization"]  # recorded, the same draws
     assert sorted(metas[0]["randomization"]) == ["11", "12", "13"]
     assert metas[0]["randomize"] == "light"
+    assert metas[0]["servo_model"].startswith("sts3215 (")  # the servo model is named
     for key in a:
         np.testing.assert_array_equal(a[key], b[key], err_msg=key)
     # each episode from its own start: the folded pose, the cube where reset(seed) puts it

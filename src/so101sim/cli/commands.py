@@ -75,7 +75,12 @@ def cmd_check(args: argparse.Namespace) -> int:
         report = check_motion_file(
             motion, model=args.model, thresholds=thresholds, strict=args.strict, arm=args.arm
         )
-    print(json.dumps(report.to_dict(), indent=2) if args.json else format_report(report))
+    # the report names the motion it judged: the file, or the lab motion
+    if args.json:
+        print(json.dumps({"motion": str(motion), **report.to_dict()}, indent=2))
+    else:
+        name = f"the lab motion ({motion})" if args.motion is None else str(motion)
+        print(f"checked {name}\n{format_report(report)}")
     return 0 if report.passed else 1
 
 

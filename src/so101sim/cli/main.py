@@ -3,6 +3,7 @@
 so101sim run [MOTION]   a motion file, by default the lab motion (viewer on a desktop)
 so101sim pose           pose the arm in the viewer; prints each pose as a dict and as TOML
 so101sim check [MOTION] simulate a motion (default: the lab motion) headless; PASS or FAIL
+so101sim grade HANDIN   judge a lab hand-in's CSV log (or a folder of them); PASS or FAIL
 so101sim hold           hold the starting pose (the lab's first script)
 so101sim view           open the model in MuJoCo's interactive viewer
 so101sim model-path     print the folder of the shipped model
@@ -16,9 +17,9 @@ it runs, not at the top, to start fast (``so101sim --help`` imports no MuJoCo) a
 ``--record`` can choose the OpenGL backend before MuJoCo is first imported.
 
 This module holds the parser and :func:`main`; the commands are in :mod:`.run` (run, hold),
-:mod:`.commands` (view, model-path, pose, check, teleop), :mod:`.tools` (record, workspace,
-cache, examples) and :mod:`.demo`; what is printed, and the signal handling that finishes the
-output files first, in :mod:`.output`.
+:mod:`.commands` (view, model-path, pose, check, teleop), :mod:`.tools` (record, grade,
+workspace, cache, examples) and :mod:`.demo`; what is printed, and the signal handling that
+finishes the output files first, in :mod:`.output`.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from .tools import (
     add_camera_options,
     add_commands,
     add_video_options,
+    cmd_grade,
     split_script_args,
 )
 
@@ -139,6 +141,8 @@ def build_parser() -> argparse.ArgumentParser:
     summary = "mirror a LeRobot SO-101 leader arm on the sim in real time (Ctrl-C stops)"
     _add_teleop_options(_command(sub, "teleop", cmd_teleop, summary, model, arm, headless))
     add_commands(sub, recording=recording, model=model, arm=arm)
+    summary = "judge a lab hand-in's CSV log (or a folder of hand-ins) against the lab's spec"
+    _add_grade_options(_command(sub, "grade", cmd_grade, summary))
     from .demo import add_demo_command  # so101sim demo
 
     add_demo_command(sub, arm=arm)
@@ -177,6 +181,44 @@ def _add_check_options(p: argparse.ArgumentParser) -> None:
     v.add_argument("--plot", metavar="PNG", help="histograms of the variants' figures")
     v.add_argument("--force", action="store_true", help="overwrite an existing --plot file")
     v.add_argument("--ray", metavar="ADDRESS", help="run on Ray: auto, local or an address")
+
+
+def _add_grade_options(p: argparse.ArgumentParser) -> None:
+    p.description = (
+        "Judges a lab hand-in against the lab's spec: from rest to all zeros in 2 s, hold 2 s, "
+        "back to the start in 2 s. The phases are found from the log's commanded angles; each "
+        "is judged on its duration, the pose reached and (the hold) how still the arm held. "
+        "Exit status: 0 every hand-in passed, 1 one failed, 2 not a so101sim log (or a bad "
+        "option)."
+    )
+    p.add_argument(
+        "handin",
+        metavar="LOG|FOLDER",
+        help="a CSV log (so101sim run --log, so101sim record ... --log), or a folder of hand-ins: "
+        "one CSV per student (named by the file) or one sub-folder per student (named by it)",
+    )
+    p.add_argument(
+        "--video", metavar="FILE", help="the hand-in's video: readable, as long as the log"
+    )
+    p.add_argument("--summary", metavar="CSV", help="with a folder: one row per student, per phase")
+    p.add_argument("--force", action="store_true", help="overwrite an existing --summary file")
+    p.add_argument("--json", action="store_true", help="print the grades as JSON")
+    p.add_argument(
+        "--tolerance-deg",
+        type=float,
+        metavar="DEG",
+        default=10.0,
+        help="largest joint error of a reached pose, and most a joint may move in the hold, "
+        "degrees (body joints, the gripper is not judged; default 10: the fitted STS3215 "
+        "servos end the lab's moves up to 7.8° short)",
+    )
+    p.add_argument(
+        "--time-tolerance-s",
+        type=float,
+        metavar="S",
+        default=0.25,
+        help="most a phase's duration may differ from the spec's 2 s (default 0.25)",
+    )
 
 
 def _add_teleop_options(p: argparse.ArgumentParser) -> None:

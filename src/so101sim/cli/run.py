@@ -54,7 +54,8 @@ def _run(
     model: mujoco.MjModel | None = None,
     known: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> int:
-    from .runplan import prepare_run  # imported here: it imports MuJoCo
+    from ..model.build import servo_model  # imported here: it imports MuJoCo
+    from .runplan import prepare_run
     from .studio import web_run  # --web: the studio in a browser (cli/studio.py)
 
     with web_run(args) as web:  # None without --web
@@ -71,6 +72,7 @@ def _run(
         )
         if run.viewer.note:
             print(run.viewer.note)
+        print(f"servo model: {servo_model(run.sim.model)}")
         bar = _progress_bar(run.video_frames)
         with _reporting(run.recorder, bar) if run.recorder else contextlib.nullcontext():
             result = run.execute(

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 import mujoco
 import numpy as np
 
+from ..model.arm import ArmLike
 from ..model.load import arm_units, load_model
 from ..motion.plan import PlannedMotion, plan_segments, run_plan
 from ..motion.segments import RunResult, Segment
@@ -120,7 +121,7 @@ def run_model(
     *,
     headless: bool = False,
     outputs: Outputs | None = None,
-    arm: object = None,
+    arm: ArmLike = None,
 ) -> mujoco.MjModel:
     """The model a run uses: ``model`` loaded (the shipped one by default) with the arm profile
     ``arm`` (None: the default, see :func:`~so101sim.model.load_model`), the physics-only
@@ -143,7 +144,7 @@ def prepare_run(
     strict: bool = False,
     outputs: Outputs | None = None,
     known: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
-    arm: object = None,
+    arm: ArmLike = None,
 ) -> PreparedRun:
     """Check a run of ``segments`` from ``start`` and make its recorder, opening nothing. The
     motion is planned here, once (:func:`~so101sim.motion.plan.plan_segments`): the video's

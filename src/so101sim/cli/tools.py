@@ -1,8 +1,8 @@
-"""More ``so101sim`` commands: ``record`` (a student's own script to a video), ``workspace``,
-``cache`` and ``examples``, and the camera options every recording command shares
-(:func:`add_camera_options`, :func:`camera_options`). Like :mod:`so101sim.cli`, they only parse
-and print: each calls one library function. Heavy modules are imported inside the commands, to
-keep start-up fast.
+"""More ``so101sim`` commands: ``record`` (a student's own script to a video), ``grade`` (an
+instructor's check of hand-ins), ``workspace``, ``cache`` and ``examples``, and the camera
+options every recording command shares (:func:`add_camera_options`, :func:`camera_options`).
+Like :mod:`so101sim.cli`, they only parse and print: each calls one library function. Heavy
+modules are imported inside the commands, to keep start-up fast.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import MotionFileError, RecordingError
+from .output import _say
 from .studio import add_web_options
 
 SubParsers = Any  # argparse's private _SubParsersAction
@@ -117,6 +118,15 @@ def camera_options(args: argparse.Namespace) -> dict[str, Any]:
     return options
 
 
+RECORD_ARM_HELP = (
+    "the servo model for the script's own model. Default: the script's models as it makes "
+    "them (a scene.xml it compiles itself, as the lab handout does, has the file's ideal "
+    "actuators: official; so101sim's load_model/Simulation: sts3215). --arm sts3215, "
+    "official, sts3215-12v or a TOML file runs the script's model with that profile "
+    "(said once on stderr)"
+)
+
+
 def add_commands(
     sub: SubParsers,
     *,
@@ -127,7 +137,7 @@ def add_commands(
     """Add ``record``, ``workspace``, ``cache`` and ``examples`` to the parser's subcommands."""
     p = sub.add_parser(
         "record",
-        parents=[recording, arm],
+        parents=[recording],  # not `arm`: record's --arm says what it means for a script
         help="run your own simulation script headless and record it to a video",
         description=(
             "Runs SCRIPT unchanged: its mujoco.viewer.launch_passive(m, d) records instead of "
@@ -141,6 +151,7 @@ def add_commands(
     p.add_argument("script", help="the Python script to run (as you run it with python)")
     p.add_argument("-o", "--output", help="the video to write (.mp4); --record PATH says the same")
     p.add_argument("--title", help="a title in the caption and the video's metadata")
+    p.add_argument("--arm", metavar="NAME|FILE", default=None, help=RECORD_ARM_HELP)
     p.add_argument("script_args", nargs="*", help="arguments for the script, after --")
     add_web_options(p)
     p.set_defaults(func=cmd_record)
@@ -178,7 +189,7 @@ def split_script_args(argv: list[str]) -> tuple[list[str], list[str] | None]:
 
 
 def cmd_record(args: argparse.Namespace) -> int:
-    from ..lab.handin import run_script  # imported here: it imports MuJoCo
+    from ..lab.handin import run_script, script_line  # imported here: it imports MuJoCo
     from ..recording import VideoSettings
 
     args.output = record_output(args)
@@ -189,6 +200,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     VideoSettings(**video).validated()  # a bad setting stops before the script runs
     options = {**video, "plot": args.plot, "log": args.log, "force": args.force}
     options["arm"] = args.arm
+    options["say"] = lambda text: _say(f"so101sim record: {text}", err=True)
     if args.web:  # the script live in a browser (cli/studio.py)
         from .studio import record_web
 
@@ -198,22 +210,28 @@ def cmd_record(args: argparse.Namespace) -> int:
     except Exception as exc:
         from ..errors import So101SimError
 
+        where = script_line(exc, args.script)  # the script's file:line, if it came from there
         if isinstance(exc, So101SimError):
-            raise
+            if not where:
+                raise
+            _say(f"so101sim: error: {where}: {exc}", err=True)
+            return 2
         traceback.print_exc()  # the script's own error, as Python shows it
-        print(f"so101sim: {args.script} raised {type(exc).__name__}", file=sys.stderr)
+        print(f"so101sim: {where or args.script} raised {type(exc).__name__}", file=sys.stderr)
         return 1
     if run.message:
         print(run.message, file=sys.stderr)
     for kind, path in run.outputs.items():
         print(f"wrote the {kind} to {path}")
     print(f"{args.script}: {run.simulated_seconds:.3f} s of simulated time")
+    print(f"servo model: {run.servo_model}")
     return run.exit_status
 
 
 def record_output(args: argparse.Namespace) -> str | None:
     """``record``'s video: ``-o PATH`` or ``--record PATH`` (the same option under the name
-    ``run`` and ``hold`` use); one of them is needed, unless ``--web`` shows the script."""
+    ``run`` and ``hold`` use); None (no video) when only a log or a plot is asked for
+    (``--log``, ``--plot``) or ``--web`` shows the script."""
     from ..validation import check_path_text
 
     for name in ("output", "record"):  # an empty name is no path (not "no video")
@@ -225,10 +243,10 @@ def record_output(args: argparse.Namespace) -> str | None:
             "(they are the same option of record)"
         )
     output = args.output or args.record
-    if output is None and not args.web:
+    if output is None and not (args.web or args.log or args.plot):
         raise RecordingError(
-            "record needs the video to write; expected -o VIDEO.mp4 (or --web to show the "
-            "script in a browser)"
+            "record needs something to write; expected -o VIDEO.mp4, --log LOG.csv or --plot "
+            "PLOT.png (or --web to show the script in a browser)"
         )
     return output
 
@@ -271,3 +289,52 @@ def cmd_examples(args: argparse.Namespace) -> int:
         print(path)
     print(f"copied {len(copied)} file(s) to {args.folder}")
     return 0
+
+
+def cmd_grade(args: argparse.Namespace) -> int:
+    """``so101sim grade LOG|FOLDER``: the lab hand-in(s) judged against the lab's spec."""
+    from ..errors import SettingError
+    from ..gl import skip_opengl
+
+    skip_opengl()  # nothing is drawn (the log reader's module imports MuJoCo)
+    import json
+
+    from ..lab.grade import Tolerances, grade_log
+    from ..lab.gradefolder import grade_folder
+    from ..lab.gradereport import (
+        check_summary_path,
+        folder_dict,
+        format_folder,
+        format_grade,
+        grade_dict,
+        write_summary,
+    )
+    from ..validation import checked_path
+
+    tolerances = Tolerances(args.tolerance_deg, args.time_tolerance_s)
+    handin = checked_path(args.handin, "hand-in")  # empty, too long: one line before anything
+    if args.video is not None:
+        checked_path(args.video, "video")
+    if not handin.is_dir():
+        if args.summary is not None:
+            raise SettingError(
+                "--summary writes one row per student of a folder of hand-ins; expected a "
+                f"folder, not {args.handin!r} (or no --summary)"
+            )
+        result = grade_log(args.handin, video=args.video, tolerances=tolerances)
+        print(json.dumps(grade_dict(result), indent=2) if args.json else format_grade(result))
+        return 0 if result.passed else 1
+    if args.video is not None:
+        raise SettingError(
+            "--video goes with one log; in a folder each log's video is found beside it "
+            "(the same name, .mp4)"
+        )
+    if args.summary is not None:
+        check_summary_path(args.summary, force=args.force)  # before anything is graded
+    folder = grade_folder(args.handin, tolerances=tolerances)
+    print(json.dumps(folder_dict(folder), indent=2) if args.json else format_folder(folder))
+    if args.summary is not None:
+        written = write_summary(folder, args.summary, force=args.force)
+        if not args.json:  # the JSON alone on stdout
+            print(f"wrote the summary to {written}")
+    return 0 if folder.passed else 1

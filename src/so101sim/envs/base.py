@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import contextlib
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -34,7 +33,7 @@ from gymnasium import spaces
 
 from ..errors import ClosedError, SettingError, ViewerError
 from ..exitgate import gated
-from ..model.arm import load_profile
+from ..model.arm import ArmLike, load_profile
 from ..recording import FREE_CAMERA, QUALITY_CHOICES, FrameRenderer, VideoSettings
 from ..recording.settings import check_quality
 from ..robot.config import GRIPPER_TORQUE_FRACTION
@@ -112,7 +111,7 @@ class So101TaskEnv(SceneState, gym.Env):
         terminate_on_success: bool = True,
         initial_pose: Pose | None = None,
         randomize: str | Randomization | dict[str, Any] | None = None,
-        arm: str | Path | None = None,
+        arm: ArmLike = None,
     ) -> None:
         if render_mode is not None:
             check_choice(render_mode, "render mode", RENDER_MODES)

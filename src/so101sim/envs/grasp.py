@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 import mujoco
 import numpy as np
 
-from ..model.arm import gripper_full_range, load_profile
+from ..model.arm import ArmLike, gripper_full_range, load_profile
 from ..model.load import arm_index
 from ..robot.config import GRIPPER_TORQUE_FRACTION
 from ..scenes import (
@@ -134,7 +134,7 @@ def cube_scene(
 
 
 def limit_gripper(
-    model: mujoco.MjModel, fraction: float = GRIPPER_TORQUE_FRACTION, arm: object = None
+    model: mujoco.MjModel, fraction: float = GRIPPER_TORQUE_FRACTION, arm: ArmLike = None
 ) -> None:
     """Bound the gripper's force as the real gripper's torque limit does: ``fraction`` of the
     arm profile ``arm``'s gripper torque limit (LeRobot writes 50 %; None: the default
@@ -157,7 +157,7 @@ def grasp_trial(
     hold: float = 3.0,
     contact: ContactSettings | None = None,
     torque_fraction: float = GRIPPER_TORQUE_FRACTION,
-    arm: object = None,
+    arm: ArmLike = None,
 ) -> GraspTrial:
     """Pick a 2.5 cm cube of ``mass`` kg standing at (x, y), turned ``yaw`` degrees, hold it
     up for ``hold`` s and measure it (see the module's text)."""
@@ -239,7 +239,7 @@ def rest_trial(
     *,
     duration: float = 60.0,
     contact: ContactSettings | None = None,
-    arm: object = None,
+    arm: ArmLike = None,
 ) -> RestTrial:
     """Leave a 2.5 cm cube on the table for ``duration`` s (the arm holding its rest pose) and
     measure, every 50 ms, how far it drifted sideways and up or down from where it was put."""

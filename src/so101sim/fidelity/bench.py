@@ -13,13 +13,19 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from ..errors import SettingError
-from ..model.arm import ArmProfile, ServoParams, apply_servo, fill_delay_history, load_profile
+from ..model.arm import (
+    ArmLike,
+    ArmProfile,
+    ServoParams,
+    apply_servo,
+    fill_delay_history,
+    load_profile,
+)
 from ..validation import check_count, check_range
 
 __all__ = ["BENCH_SUPPLY_V", "BenchBatch", "BenchRig", "ServoBench", "arm_mass_for"]
@@ -78,7 +84,7 @@ class BenchBatch:
     def __init__(
         self,
         rigs: Sequence[BenchRig],
-        arm: str | Path | ArmProfile | None = None,
+        arm: ArmLike = None,
         *,
         max_delay_s: float | None = None,
         timestep: float = TIMESTEP,
@@ -217,7 +223,7 @@ class ServoBench:
         mass: float,
         length: float,
         firmware_kp: float = 16,
-        arm: str | Path | ArmProfile | None = None,
+        arm: ArmLike = None,
         *,
         arm_mass: float | None = None,
     ) -> None:

@@ -9,11 +9,10 @@ from __future__ import annotations
 from collections import defaultdict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 
-from ..model.arm import UNCERTAIN_FIELDS, ArmProfile, ServoParams, load_profile
+from ..model.arm import UNCERTAIN_FIELDS, ArmLike, ServoParams, load_profile
 from .bench import BenchBatch, BenchRig, bench_servo
 from .benchdata import BenchRun
 
@@ -37,9 +36,7 @@ def rigs_of(runs: Sequence[BenchRun]) -> list[BenchRig]:
     return [BenchRig(r.mass, r.length, r.kp) for r in runs]
 
 
-def simulate_runs(
-    runs: Sequence[BenchRun], arm: str | Path | ArmProfile | None = None
-) -> list[np.ndarray]:
+def simulate_runs(runs: Sequence[BenchRun], arm: ArmLike = None) -> list[np.ndarray]:
     """The predicted positions (rad) of each run with profile ``arm``, all in one batch."""
     batch = BenchBatch(rigs_of(runs), arm)
     period, goals, init, en = _stack(runs)
@@ -91,7 +88,7 @@ class BenchFit:
 
 def fit_bench(
     runs: Sequence[BenchRun],
-    start: str | Path | ArmProfile | None = "sts3215",
+    start: ArmLike = "sts3215",
     *,
     names: Sequence[str] = FIT_PARAMS,
     max_evaluations: int = 400,

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..model.arm import ArmProfile, load_profile
+from ..model.arm import ArmLike, load_profile
 from ..sim.simulation import Simulation
 from ..units import JOINT_NAMES
 from .logs import ArmLog, Episode, read_log
@@ -106,7 +106,7 @@ def _lag(real: np.ndarray, sim: np.ndarray, period: float) -> float:
 def compare(
     log: str | Path | ArmLog,
     *,
-    arm: str | Path | ArmProfile | None = None,
+    arm: ArmLike = None,
     episodes: list[int] | None = None,
     calibration: str | Path | None = None,
     model: str | Path | None = None,

@@ -30,13 +30,14 @@ from ..errors import SettingError
 from ..model.arm import (
     UNCERTAIN_FIELDS,
     UNCERTAIN_LIMIT,
+    ArmLike,
     ArmProfile,
     ServoParams,
-    apply_profile,
     load_profile,
     write_servo,
 )
-from ..model.load import arm_index, arm_units, scene_path
+from ..model.build import build, recipe
+from ..model.load import arm_index, arm_units
 from ..units import JOINT_NAMES, ArmUnits
 from ..validation import check_count
 from .deps import need
@@ -95,12 +96,12 @@ class ArmReplayer:
     ) -> None:
         self.episodes = list(episodes)
         self.base = base
-        spec = mujoco.MjSpec.from_file(str(model_path or scene_path()))
         wide = replace(base, servo=replace(base.servo, delay_s=MAX_DELAY_S),
                        joints={j: {k: v for k, v in d.items() if k != "delay_s"}
                                for j, d in base.joints.items()})  # fmt: skip
-        apply_profile(spec, wide)
-        self.model = spec.compile()
+        # the model builder's, a one-off (not cached); the batch's copies are what the fit
+        # writes into
+        self.model = build(recipe(model_path, arm=wide, keep=False))
         self.index = arm_index(self.model)
         self.units: ArmUnits = arm_units(self.model)
         self.threads = check_count(
@@ -197,7 +198,7 @@ def _mae(pred: np.ndarray, real: np.ndarray) -> dict[str, float]:
 def fit(
     logs: Sequence[str | Path | ArmLog],
     *,
-    arm: str | Path | ArmProfile | None = "sts3215",
+    arm: ArmLike = "sts3215",
     episodes: list[int] | None = None,
     calibration: str | Path | None = None,
     units: str = "auto",

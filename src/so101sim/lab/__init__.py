@@ -3,7 +3,11 @@
 An app layer: may import ``so101sim.preflight``, ``so101sim.recording``, ``so101sim.viewer``,
 ``so101sim.motion``, ``so101sim.sim``, ``so101sim.model`` and the base modules. Modules:
 :mod:`.helpers` (``move_to_pose``, ``hold_position``, ...), :mod:`.handin` (``so101sim record``),
-:mod:`.simclock` (simulated time for scripts), :mod:`.starter` (``so101sim examples``).
+:mod:`.recviewer` (the recording viewer ``record`` returns), :mod:`.arming` (``record --arm``:
+the script's model run with a profile), :mod:`.simclock` (simulated time for scripts),
+:mod:`.starter` (``so101sim examples``), :mod:`.grade` (``so101sim grade``: :mod:`.gradelog`
+reads a log, :mod:`.gradevideo` checks the video, :mod:`.gradefolder` grades a folder,
+:mod:`.gradereport` says it).
 """
 
 from typing import TYPE_CHECKING

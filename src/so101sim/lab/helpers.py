@@ -46,6 +46,7 @@ from ..preflight.measure import StepRecorder, collect
 from ..preflight.states import StateRecorder, vectorisable
 from ..sim.simulation import Observer, SegmentResult, Simulation
 from ..units import JOINT_NAMES, Pose
+from .arming import attached
 
 log = logging.getLogger(__name__)
 
@@ -98,7 +99,8 @@ def set_initial_pose(d: mujoco.MjData, position_dict: Pose, *, clip: bool = Fals
     Unlike the handout, this also sets the position targets, so the arm holds the pose rather
     than falling towards the targets' default of 0 on the first step.
     """
-    Simulation.attach(d.model, d).set_pose(position_dict, clip=clip)
+    with attached(d.model, d) as sim:
+        sim.set_pose(position_dict, clip=clip)
 
 
 def send_position_command(d: mujoco.MjData, position_dict: Pose, *, clip: bool = False) -> None:
@@ -107,8 +109,8 @@ def send_position_command(d: mujoco.MjData, position_dict: Pose, *, clip: bool =
     MuJoCo's position actuators then pull each joint towards its target with the model's PD
     gains. Raises before changing anything if a name, value or limit is wrong.
     """
-    sim = Simulation.attach(d.model, d)
-    sim.command_array(sim.units.pose_to_array(position_dict, clip=clip), check=False)
+    with attached(d.model, d) as sim:
+        sim.command_array(sim.units.pose_to_array(position_dict, clip=clip), check=False)
 
 
 def move_to_pose(
@@ -127,15 +129,15 @@ def move_to_pose(
     clock. Returns the move's :class:`~so101sim.sim.simulation.SegmentResult` (the handout
     returned nothing; ignoring the result is fine). If the viewer is closed, returns early.
     """
-    sim = Simulation.attach(m, d)
-    return _watched(
-        sim,
-        "move_to_pose",
-        lambda obs: sim.move_to(
-            desired_position, duration, viewer=viewer, observers=obs, clip=clip,
-            phase="move_to_pose", trace=True,
-        ),
-    )  # fmt: skip
+    with attached(m, d) as sim:
+        return _watched(
+            sim,
+            "move_to_pose",
+            lambda obs: sim.move_to(
+                desired_position, duration, viewer=viewer, observers=obs, clip=clip,
+                phase="move_to_pose", trace=True,
+            ),
+        )  # fmt: skip
 
 
 def hold_position(
@@ -146,14 +148,14 @@ def hold_position(
     Before any command, holds the pose it finds. (The handout re-read the sagging measured pose
     and let the arm creep under gravity.)
     """
-    sim = Simulation.attach(m, d)
-    return _watched(
-        sim,
-        "hold_position",
-        lambda obs: sim.hold(
-            duration, viewer=viewer, observers=obs, phase="hold_position", trace=True
-        ),
-    )
+    with attached(m, d) as sim:
+        return _watched(
+            sim,
+            "hold_position",
+            lambda obs: sim.hold(
+                duration, viewer=viewer, observers=obs, phase="hold_position", trace=True
+            ),
+        )
 
 
 def _watched(

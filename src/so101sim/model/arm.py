@@ -44,11 +44,10 @@ are one format and read best side by side (a field added in one place needs the 
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import math
+import os
 import tomllib
-from collections.abc import Iterator
 from dataclasses import dataclass, field, fields, replace
 from functools import lru_cache
 from importlib import resources
@@ -66,11 +65,11 @@ __all__ = [
     "STALL_TORQUE_NM",
     "UNCERTAIN_FIELDS",
     "UNCERTAIN_LIMIT",
+    "ArmLike",
     "ArmProfile",
     "ProfileError",
     "ServoParams",
     "apply_profile",
-    "default_profile",
     "draw_servo_deltas",
     "fill_delay_history",
     "gripper_full_range",
@@ -234,6 +233,11 @@ class ArmProfile:
         return replace(self, supply_v=_check_supply(volts, "supply_v"))
 
 
+ArmLike = str | os.PathLike[str] | ArmProfile | None
+"""An arm profile as every so101sim function takes it: a shipped name (``"sts3215"``,
+``"official"``), a TOML path, an :class:`ArmProfile`, or None (:data:`PROFILE_DEFAULT`)."""
+
+
 def _stall(volts: float) -> float:
     """Rated stall torque at ``volts``, interpolated linearly between the two versions."""
     (v0, t0), (v1, t1) = sorted(STALL_TORQUE_NM.items())
@@ -254,7 +258,7 @@ def profile_names() -> list[str]:
     return sorted(p.stem for p in _arms_dir().glob("*.toml"))
 
 
-def load_profile(profile: str | Path | ArmProfile | None = None) -> ArmProfile:
+def load_profile(profile: ArmLike = None) -> ArmProfile:
     """A profile by name (``"official"``, ``"sts3215"``, ``"sts3215-12v"``), by TOML path, or
     as given; None is :data:`PROFILE_DEFAULT`.
 
@@ -265,11 +269,9 @@ def load_profile(profile: str | Path | ArmProfile | None = None) -> ArmProfile:
     if isinstance(profile, ArmProfile):
         return profile
     if profile is None:
-        if _override:
-            return _override[-1]
         profile = PROFILE_DEFAULT
-    text = str(profile)
-    if isinstance(profile, Path) or text.endswith(".toml") or "/" in text or "\\" in text:
+    text = os.fspath(profile) if isinstance(profile, os.PathLike) else str(profile)
+    if isinstance(profile, os.PathLike) or text.endswith(".toml") or "/" in text or "\\" in text:
         path = Path(text).expanduser()
         if not path.is_file():
             raise ProfileError(
@@ -296,21 +298,6 @@ def profile_from_toml(text: str, where: str = "arm profile") -> ArmProfile:
     except tomllib.TOMLDecodeError as exc:
         raise ProfileError(f"{where} is not valid TOML ({exc})") from exc
     return _from_dict(raw, where, set())
-
-
-_override: list[ArmProfile] = []
-
-
-@contextlib.contextmanager
-def default_profile(profile: str | Path | ArmProfile) -> Iterator[ArmProfile]:
-    """While the block runs, ``profile`` is what None means (for ``so101sim record --arm``,
-    which runs a script that loads its own models). Not for threads that outlive the block."""
-    prof = load_profile(profile)
-    _override.append(prof)
-    try:
-        yield prof
-    finally:
-        _override.remove(prof)
 
 
 def _from_file(path: Path, seen: set[str]) -> ArmProfile:
@@ -425,7 +412,7 @@ def profile_toml(profile: ArmProfile, *, comment: str = "") -> str:
     return "\n".join(lines) + "\n"
 
 
-def profile_key(profile: str | Path | ArmProfile | None) -> str:
+def profile_key(profile: ArmLike) -> str:
     """A short key naming what ``profile`` does to a model: ``""`` when it is the vendored
     actuators (the shipped ``official`` values: the model file as it is), else ``"arm-"`` and
     a digest of its values (the model caches' key)."""
@@ -446,7 +433,7 @@ def _official_values() -> str:
     return _values_toml(load_profile(OFFICIAL))
 
 
-def gripper_full_range(profile: str | Path | ArmProfile | None) -> np.ndarray:
+def gripper_full_range(profile: ArmLike) -> np.ndarray:
     """``[-limit, limit]`` (N·m): the gripper servo's torque limit at the profile's supply,
     before a firmware torque limit (the profile's ``torque_scale``). The follower and the
     environments give the gripper their ``gripper_torque_fraction`` of it (LeRobot's
@@ -509,7 +496,7 @@ def _set_delay(actuator: Any, params: ServoParams, timestep: float) -> None:
         actuator.nsample = 0
 
 
-def apply_profile(spec: mujoco.MjSpec, profile: str | Path | ArmProfile | None) -> ArmProfile:
+def apply_profile(spec: mujoco.MjSpec, profile: ArmLike) -> ArmProfile:
     """Apply ``profile`` to every SO-101 joint of ``spec`` and the actuator driving it; returns
     the profile. Joints the spec lacks are skipped (a scene may hold only part of the arm)."""
     prof = load_profile(profile)
@@ -586,7 +573,7 @@ def write_servo(model: mujoco.MjModel, actuator: int, dof: int, params: ServoPar
 
 
 def draw_servo_deltas(
-    profile: str | Path | ArmProfile | None,
+    profile: ArmLike,
     rng: np.random.Generator,
     sigmas: float = 1.0,
     joints: tuple[str, ...] = JOINT_NAMES,

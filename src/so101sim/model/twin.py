@@ -21,13 +21,13 @@ from __future__ import annotations
 
 import threading
 import weakref
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
-from .load import load_model, loaded_specs, model_spec
+from ..errors import So101SimError
+from .build import Addition, ModelRecipe, build, built_models, recipe, recipe_of
 
 _SYNCED = (
     "actuator_gainprm", "actuator_biasprm", "actuator_forcerange", "actuator_ctrlrange",
@@ -99,21 +99,22 @@ def contact_twin(m: mujoco.MjModel) -> Twin | None:
 
 
 def _make(m: mujoco.MjModel) -> Twin | None:
-    """The twin of ``m`` from the spec it was compiled from (its file with its arm profile),
-    or from the first model so101sim loaded (the shipped scene, with the default profile and
-    as the file has it) whose model has ``m``'s signature (a user's own copy or compile of
-    it)."""
-    own = model_spec(m)
+    """The twin of ``m``: its recipe (its file with its arm profile) with the twin's sensors
+    added, built by the model builder (cached on disk like any model), or, for a model so101sim
+    did not build (a user's own copy or compile), the recipe of the first built model with
+    ``m``'s signature (the shipped scene with the default profile and as the file has it
+    first)."""
+    own = recipe_of(m)
     candidates = [own] if own is not None else []
     if own is None:
         sig = _signature(m)
         for arm in (None, "official"):  # the shipped scene: the default arm, then the file's
-            shipped = load_model(arm=arm)
-            if _signature(shipped) == sig and (fn := model_spec(shipped)) is not None:
-                candidates.append(fn)
-        candidates += [fn for fn, lm in loaded_specs() if _signature(lm) == sig]
-    for fn in candidates:
-        twin = _from_spec(m, fn)
+            shipped = recipe(arm=arm)
+            if _signature(build(shipped)) == sig:
+                candidates.append(shipped)
+        candidates += [r for r, lm in built_models() if _signature(lm) == sig]
+    for r in candidates:
+        twin = _from_recipe(m, r)
         if twin is not None:
             return twin
     return None
@@ -127,25 +128,31 @@ def _signature(m: mujoco.MjModel) -> tuple:
     )  # fmt: skip
 
 
-def _from_spec(m: mujoco.MjModel, make_spec: Callable[[], mujoco.MjSpec]) -> Twin | None:
-    try:
-        spec = make_spec()
+def _add_sensors(spec: mujoco.MjSpec) -> None:
+    """The twin's sensors: one contact count, one force per actuator (named if unnamed)."""
+    spec.add_sensor(
+        name="so101sim_contacts",
+        type=mujoco.mjtSensor.mjSENS_CONTACT,
+        intprm=[1, 0, 1],  # data="found", no reduction, one match slot
+    )
+    for a, act in enumerate(spec.actuators):  # each actuator's force (actuatorfrc)
+        if not act.name:
+            act.name = f"so101sim_actuator_{a}"
         spec.add_sensor(
-            name="so101sim_contacts",
-            type=mujoco.mjtSensor.mjSENS_CONTACT,
-            intprm=[1, 0, 1],  # data="found", no reduction, one match slot
+            name=f"so101sim_force_{a}",
+            type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+            objtype=mujoco.mjtObj.mjOBJ_ACTUATOR,
+            objname=act.name,
         )
-        for a, act in enumerate(spec.actuators):  # each actuator's force (actuatorfrc)
-            if not act.name:
-                act.name = f"so101sim_actuator_{a}"
-            spec.add_sensor(
-                name=f"so101sim_force_{a}",
-                type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
-                objtype=mujoco.mjtObj.mjOBJ_ACTUATOR,
-                objname=act.name,
-            )
-        tw = spec.compile()
-    except (ValueError, mujoco.FatalError):
+
+
+TWIN_SENSORS = Addition("twin1", _add_sensors)
+
+
+def _from_recipe(m: mujoco.MjModel, r: ModelRecipe) -> Twin | None:
+    try:
+        tw = build(r.with_additions(TWIN_SENSORS))
+    except (ValueError, mujoco.FatalError, So101SimError):
         return None
     if not _same_physics(m, tw):
         return None

@@ -60,6 +60,7 @@ from typing import Any
 
 import mujoco
 
+from ..model.arm import ArmLike
 from ..model.load import arm_units, load_model
 from ..motion.file import load_motion
 from ..motion.segments import Segment
@@ -114,7 +115,7 @@ def preflight(
     thresholds: Thresholds | None = None,
     lines: Sequence[int] = (),
     strict: bool = False,
-    arm: object = None,
+    arm: ArmLike = None,
 ) -> PreflightReport:
     """Simulate ``steps`` headless from ``start`` (at rest) and judge them.
 
@@ -149,7 +150,7 @@ def check_motion_file(
     model: mujoco.MjModel | str | Path | None = None,
     thresholds: Thresholds | None = None,
     strict: bool = False,
-    arm: object = None,
+    arm: ArmLike = None,
 ) -> PreflightReport:
     """Load a motion file and :func:`preflight` it from its start pose (on ``model`` with the
     arm profile ``arm``, see :func:`preflight`)."""

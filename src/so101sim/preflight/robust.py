@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..model.arm import load_profile, profile_from_toml, profile_toml
+from ..model.arm import ArmLike, load_profile, profile_from_toml, profile_toml
 from ..model.load import arm_units, load_model, scene_path
 from ..motion.file import MotionFile, parse_motion
 from ..motion.lines import MAX_FILE_BYTES, load_toml, read_text_limited
@@ -92,7 +92,7 @@ def make_job(
     thresholds: Thresholds | None = None,
     strict: bool = False,
     ranges: VariantRanges | None = None,
-    arm: object = None,
+    arm: ArmLike = None,
 ) -> VariantJob:
     """Check every setting (count and seed first, before anything is read or allocated) and
     read the motion file and its ``[variants]`` table.
@@ -179,7 +179,7 @@ def check_variants(
     thresholds: Thresholds | None = None,
     strict: bool = False,
     ranges: VariantRanges | None = None,
-    arm: object = None,
+    arm: ArmLike = None,
 ) -> VariantsReport:
     """Run the motion file at ``path`` on ``count`` perturbed arms (of the arm profile ``arm``;
     None: the default) and judge each.

@@ -44,8 +44,8 @@ import mujoco
 import numpy as np
 
 from ..errors import ModelError
-from ..model.arm import apply_profile, fill_delay_history, load_profile, profile_key
-from ..model.cache import load_or_compile
+from ..model.arm import ArmLike, fill_delay_history
+from ..model.build import Addition, build, recipe
 from ..model.load import arm_index, arm_units
 from ..motion.plan import plan_segments
 from ..motion.segments import Hold, Segment
@@ -110,36 +110,30 @@ def plan_motion(
     )
 
 
-def sensor_model(path: str | Path, arm: object = None) -> mujoco.MjModel:
-    """The model at ``path`` with the arm profile ``arm`` (None: the default) and the
-    preflight's sensors added (compiled once per content and profile, through the model
-    cache)."""
-    p = Path(path)
-    prof = load_profile(arm)  # type: ignore[arg-type]
-    arm_key = profile_key(prof)
-
-    def build() -> mujoco.MjModel:
-        spec = mujoco.MjSpec.from_file(str(p))
-        if arm_key:  # official: the file's own actuators
-            apply_profile(spec, prof)
-        found, dist, mindist = 1 << 0, 1 << 3, 1  # mjtConDataField bits, mjtConReduce
+def _add_sensors(spec: mujoco.MjSpec) -> None:
+    """The preflight's sensors: the deepest contact, each joint's actuator force."""
+    found, dist, mindist = 1 << 0, 1 << 3, 1  # mjtConDataField bits, mjtConReduce
+    spec.add_sensor(
+        name=CONTACT_SENSOR,
+        type=mujoco.mjtSensor.mjSENS_CONTACT,
+        intprm=[found | dist, mindist, 1],
+    )
+    for name in JOINT_NAMES:
         spec.add_sensor(
-            name=CONTACT_SENSOR,
-            type=mujoco.mjtSensor.mjSENS_CONTACT,
-            intprm=[found | dist, mindist, 1],
+            name=f"so101sim_preflight_force_{name}",
+            type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+            objtype=mujoco.mjtObj.mjOBJ_ACTUATOR,
+            objname=_actuator_name(spec, name),
         )
-        for name in JOINT_NAMES:
-            spec.add_sensor(
-                name=f"so101sim_preflight_force_{name}",
-                type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
-                objtype=mujoco.mjtObj.mjOBJ_ACTUATOR,
-                objname=_actuator_name(spec, name),
-            )
-        return spec.compile()
 
-    model = load_or_compile(p.resolve(), build, variant=f"{_SENSOR_CACHE_KEY}{arm_key}")
-    arm_index(model)
-    return model
+
+PREFLIGHT_SENSORS = Addition(_SENSOR_CACHE_KEY, _add_sensors)
+
+
+def sensor_model(path: str | Path, arm: ArmLike = None) -> mujoco.MjModel:
+    """The model at ``path`` with the arm profile ``arm`` (None: the default) and the
+    preflight's sensors added: the model builder's (compiled once per content and profile)."""
+    return build(recipe(path, arm=arm, additions=(PREFLIGHT_SENSORS,)))
 
 
 def _actuator_name(spec: mujoco.MjSpec, joint: str) -> str:

@@ -16,6 +16,7 @@ from typing import IO, NoReturn
 import mujoco
 import numpy as np
 
+from ..model.build import servo_name
 from ..model.load import arm_units
 from ..sim.simulation import Observer, Trace
 from ..units import JOINT_NAMES
@@ -24,12 +25,16 @@ from .paths import PendingFile, check_output_path, write_error
 
 def csv_columns() -> list[str]:
     """The CSV log's columns: ``time`` (s), ``phase``, then ``<joint>_commanded`` and
-    ``<joint>_measured`` for each joint (degrees; the gripper 0–100)."""
+    ``<joint>_measured`` for each joint (degrees; the gripper 0–100), then ``servo_model``:
+    the run's servo model (``sts3215``, ``official``, a profile's name; ``unknown`` for a model
+    so101sim cannot name). Readers take the columns by name (logs before ``servo_model``
+    was added read the same)."""
     return [
         "time",
         "phase",
         *(f"{n}_commanded" for n in JOINT_NAMES),
         *(f"{n}_measured" for n in JOINT_NAMES),
+        "servo_model",
     ]
 
 
@@ -56,6 +61,7 @@ class CsvLog(Observer):
     ) -> None:
         self.path = check_output_path(path, force=force, what="log")
         self.units = arm_units(model)
+        self.servo = _csv_line([servo_name(model)]).replace("%", "%%")
         self.rows = 0
         self.closed = False
         self._file = PendingFile(self.path)
@@ -77,7 +83,7 @@ class CsvLog(Observer):
         fmt = self._formats.get(phase)
         if fmt is None:
             name = _csv_line([phase]).replace("%", "%%")
-            fmt = ",".join(["%.4f", name, *["%.6f"] * (2 * len(JOINT_NAMES))])
+            fmt = ",".join(["%.4f", name, *["%.6f"] * (2 * len(JOINT_NAMES)), self.servo])
             if len(self._formats) < 256:  # phases are few; bound the cache anyway
                 self._formats[phase] = fmt
         return fmt

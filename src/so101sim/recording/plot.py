@@ -136,6 +136,7 @@ def plot_run(
     dpi: int = 100,
     force: bool = False,
     title: str | None = None,
+    servo: str | None = None,
 ) -> Path:
     """Plot a run: per joint the commanded and measured angle over time (the gripper on its
     0–100 scale), the phases shaded, and the tracking error |commanded − measured| of every
@@ -143,6 +144,7 @@ def plot_run(
     pixels, or PDF/SVG).
 
     ``result``: a :class:`so101sim.motion.RunResult`, a SegmentResult, or a :class:`RunLog`.
+    ``servo``: the run's servo model in words, named under the title.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # only to keep start-up fast
     from matplotlib.figure import Figure
@@ -173,7 +175,8 @@ def plot_run(
         ncol=6 if width >= 1200 else 3,
     )
     _shade_phases([*axes, err_ax], err_ax, run)
-    fig.suptitle(title or "so101sim run: commanded vs measured joint angles")
+    heading = title or "so101sim run: commanded vs measured joint angles"
+    fig.suptitle(f"{heading}\nservo model: {servo}" if servo else heading)
     fmt = p.suffix.lstrip(".").lower()
     return write_atomically(p, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt), what="plot")
 

@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 
 from ..errors import RecordingError, So101SimError
+from ..model.build import servo_model
 from ..sim.simulation import Observer
 from ..validation import check_count
 from .csvlog import CsvLog
@@ -187,7 +188,10 @@ class Recorder:
         # a second try (after a Ctrl-C) may find the file the first one wrote
         force, self._plot_tries = self.force or self._plot_tries > 0, self._plot_tries + 1
         title = getattr(self.settings, "title", None)  # the run's title heads the plot too
-        return plot_run(run, self.plot_path, width=w, height=h, force=force, title=title)
+        servo = servo_model(self.model)
+        return plot_run(
+            run, self.plot_path, width=w, height=h, force=force, title=title, servo=servo
+        )
 
 
 MAX_INTERRUPTS = 2

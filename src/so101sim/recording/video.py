@@ -4,6 +4,7 @@ the machine renders."""
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import os
@@ -15,6 +16,7 @@ import mujoco
 import numpy as np
 
 from ..errors import OutputPathError, RecordingError
+from ..model.build import servo_model, servo_name
 from ..sim.simulation import Observer, Trace
 from .encoder import FfmpegEncoder, count_frames
 from .frames import FrameRenderer
@@ -115,7 +117,10 @@ class VideoRecorder(Observer):
                 s.fps,
                 preset=self.preset,
                 crf=self.crf,
-                metadata={"title": s.title} if s.title else None,
+                metadata={
+                    **({"title": s.title} if s.title else {}),
+                    "comment": f"so101sim; servo model: {servo_model(self._model)}",
+                },
             )
         except OSError as exc:  # ffmpeg could not start
             self._file.discard()
@@ -125,7 +130,13 @@ class VideoRecorder(Observer):
         )
 
     def caption(self, d: mujoco.MjData) -> str:
-        return f"t = {d.time:6.2f} s   {self.phase}".rstrip()
+        servo = f"   servos: {self.servo}" if self.servo else ""
+        return f"t = {d.time:6.2f} s   {self.phase}{servo}".rstrip()
+
+    @functools.cached_property
+    def servo(self) -> str:
+        """The run's servo model, short (the caption names it)."""
+        return servo_name(self._model)
 
     def write_frame(self, d: mujoco.MjData) -> None:
         """Render ``d``'s state and append it to the video.

@@ -36,6 +36,7 @@ import mujoco
 import numpy as np
 
 from ..errors import CameraError, DeviceNotConnectedError, SettingError
+from ..model.arm import ArmLike
 from ..model.load import load_model
 from ..recording.settings import QUALITY_CHOICES, VideoSettings
 from ..scenes import (
@@ -149,7 +150,7 @@ def scene_model(
     scene: str | None = None,
     randomize: object = None,
     *,
-    arm: object = None,
+    arm: ArmLike = None,
 ) -> mujoco.MjModel:
     """A follower's own physics model: ``model`` (the shipped scene by default) with the arm
     profile ``arm`` (None: the default), its cameras and the table and objects of the

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import mujoco
 
-from ..errors import ModelError, SettingError
-from ..model.arm import apply_profile, load_profile, profile_key
-from ..model.load import arm_index, scene_path
+from ..errors import SettingError
+from ..model.arm import ArmLike
+from ..model.build import Addition, ModelRecipe, build, recipe, recipe_of
 from ..validation import check_count, check_range
 from .cameras import CameraSpec, add_camera, check_camera_names
 from .objects import MAX_OBJECTS, MAX_REACH_M, ContactSettings, SceneObject, Table
@@ -92,31 +92,42 @@ def _rectangle(r: object) -> Rectangle:
     return (x0, x1, y0, y1)
 
 
+def _scene_recipe(
+    cameras: Sequence[CameraSpec],
+    model: str | Path | None,
+    scene: TableScene | None,
+    arm: ArmLike,
+    extra: Callable[[mujoco.MjSpec], None] | None = None,
+) -> ModelRecipe:
+    """The model builder's recipe of a scene: the file and profile, then one addition (the
+    cameras, the table and objects of ``scene``, then ``extra``); never cached (a scene's
+    objects may be drawn at random poses)."""
+    cams = tuple(cameras) + (scene.cameras if scene is not None else ())
+
+    def add(spec: mujoco.MjSpec) -> None:
+        check_camera_names(spec, cams)
+        for cam in cams:
+            add_camera(spec, cam.validated())
+        if scene is not None:
+            _add_scene(spec, scene)
+        if extra is not None:
+            extra(spec)  # e.g. randomize.add_distractors: in every rebuild (draft renders)
+
+    file = Path(model) if model is not None else None
+    return recipe(file, arm=arm, additions=(Addition(None, add),))
+
+
 def scene_spec(
     cameras: Sequence[CameraSpec] = (),
     model: str | Path | None = None,
     scene: TableScene | None = None,
     *,
-    arm: object = None,
+    arm: ArmLike = None,
 ) -> mujoco.MjSpec:
     """The MjSpec of ``model`` (the shipped ``scene.xml`` by default) with the arm profile
     ``arm`` applied (None: the default profile, see :func:`so101sim.model.load_model`),
     ``cameras`` added, and the table, objects and cameras of ``scene``."""
-    path = Path(model) if model is not None else scene_path()
-    prof = load_profile(arm)  # type: ignore[arg-type]  # an unknown profile fails first
-    try:
-        spec = mujoco.MjSpec.from_file(str(path))
-    except (ValueError, mujoco.FatalError) as exc:
-        raise ModelError(f"model file {str(path)!r} cannot be read: {exc}") from exc
-    if profile_key(prof):  # official: the file's own actuators, as they are
-        apply_profile(spec, prof)
-    cams = tuple(cameras) + (scene.cameras if scene is not None else ())
-    check_camera_names(spec, cams)
-    for cam in cams:
-        add_camera(spec, cam.validated())
-    if scene is not None:
-        _add_scene(spec, scene)
-    return spec
+    return _scene_recipe(cameras, model, scene, arm).spec()
 
 
 def _add_scene(spec: mujoco.MjSpec, scene: TableScene) -> None:
@@ -132,9 +143,6 @@ def _add_scene(spec: mujoco.MjSpec, scene: TableScene) -> None:
         add_object(spec, obj, scene.contact)
 
 
-_builders: weakref.WeakKeyDictionary[mujoco.MjModel, Callable[[], mujoco.MjSpec]] = (
-    weakref.WeakKeyDictionary()
-)
 _scenes: weakref.WeakKeyDictionary[mujoco.MjModel, TableScene] = weakref.WeakKeyDictionary()
 _lock = threading.Lock()
 
@@ -145,12 +153,13 @@ def build_model(
     *,
     scene: TableScene | None = None,
     extra: Callable[[mujoco.MjSpec], None] | None = None,
-    arm: object = None,
+    arm: ArmLike = None,
 ) -> mujoco.MjModel:
     """Compile the shipped scene (or ``model``) with the arm profile ``arm`` (None: the
     default), ``cameras`` added, and with ``scene``'s table, objects and cameras, and whatever
-    ``extra`` adds to its MjSpec. The draft render preset finds the same scene with simplified
-    meshes (:func:`scene_builder`).
+    ``extra`` adds to its MjSpec, through the model builder
+    (:func:`so101sim.model.build.build`). The draft render preset finds the same scene with
+    simplified meshes (:func:`scene_builder`).
 
     Raises:
         ModelError, CameraError, SettingError: the model cannot be read or compiled; a camera
@@ -158,22 +167,9 @@ def build_model(
     """
     cams = tuple(c.validated() for c in cameras)
     checked = scene.validated() if scene is not None else None
-
-    def make() -> mujoco.MjSpec:
-        spec = scene_spec(cams, model, checked, arm=arm)
-        if extra is not None:
-            extra(spec)  # e.g. randomize.add_distractors: in every rebuild (draft renders)
-        return spec
-
-    spec = make()
-    try:
-        compiled = spec.compile()
-    except (ValueError, mujoco.FatalError) as exc:
-        raise ModelError(f"the scene does not compile: {exc}") from exc
-    arm_index(compiled)  # fail now if the SO-101 joints are missing
-    with _lock:
-        _builders[compiled] = make
-        if checked is not None:
+    compiled = build(_scene_recipe(cams, model, checked, arm, extra))
+    if checked is not None:
+        with _lock:
             _scenes[compiled] = checked
     return compiled
 
@@ -183,7 +179,7 @@ def build_scene(
     model: str | Path | None = None,
     *,
     extra: Callable[[mujoco.MjSpec], None] | None = None,
-    arm: object = None,
+    arm: ArmLike = None,
 ) -> mujoco.MjModel:
     """Compile ``scene`` (see :func:`build_model`)."""
     return build_model((), model, scene=scene, extra=extra, arm=arm)
@@ -191,8 +187,10 @@ def build_scene(
 
 def scene_builder(model: mujoco.MjModel) -> Callable[[], mujoco.MjSpec] | None:
     """The function that makes ``model``'s MjSpec again, if :func:`build_model` compiled it."""
-    with _lock:
-        return _builders.get(model)
+    r = recipe_of(model)
+    if r is None or not r.additions or r.additions[0].key is not None:
+        return None
+    return r.spec
 
 
 def scene_of(model: mujoco.MjModel) -> TableScene | None:

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import DurationError, ModelError, SettingError
 from ..exitgate import gated
-from ..model.arm import fill_delay_history
+from ..model.arm import ArmLike, fill_delay_history
 from ..model.load import ArmIndex, arm_index, arm_units, load_model
 from ..units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose, unit_warnings
 from ..validation import MAX_DURATION_S, check_choice, check_count
@@ -142,7 +142,8 @@ class Simulation:
     :meth:`attach` is the way for handout-style code that holds a bare ``(model, data)``.
 
     ``arm`` (optional): an arm profile (``"official"``, ``"sts3215"``, a TOML path) applied to
-    the servos at load (:mod:`so101sim.model.arm`); None keeps the model file's actuators.
+    the servos at load (:mod:`so101sim.model.arm`) when so101sim loads the model; None is the
+    default, ``sts3215`` (the fitted servos; see :func:`so101sim.model.load_model`).
     """
 
     def __init__(
@@ -151,7 +152,7 @@ class Simulation:
         *,
         data: mujoco.MjData | None = None,
         initial_pose: Pose | None = STARTING_POSE,
-        arm: Any = None,
+        arm: ArmLike = None,
     ) -> None:
         if arm is not None and isinstance(model, mujoco.MjModel):
             raise SettingError(

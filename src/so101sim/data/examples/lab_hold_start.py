@@ -3,6 +3,8 @@
 Opens the viewer on a desktop (close it to stop early); runs headless on a server.
 (in the folder the examples were copied to: so101sim examples FOLDER; cd FOLDER)
 Run: python lab_hold_start.py
+Servo model: the file's own ideal actuators (official), as the handout's scripts get;
+so101sim record --arm sts3215 lab_hold_start.py -o hold.mp4 runs the fitted servos.
 """
 
 import contextlib

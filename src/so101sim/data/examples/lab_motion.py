@@ -3,6 +3,8 @@
 Opens the viewer on a desktop (real time); runs headless on a server and prints each phase.
 (in the folder the examples were copied to: so101sim examples FOLDER; cd FOLDER)
 Run: python lab_motion.py
+Servo model: the script compiles scene.xml itself, so it runs the file's own ideal actuators
+(official); so101sim record --arm sts3215 lab_motion.py -o lab.mp4 runs the fitted servos.
 """
 
 import contextlib

@@ -2,6 +2,7 @@
 
 (in the folder the examples were copied to: so101sim examples FOLDER; cd FOLDER)
 python record_lab.py            # writes record_lab.mp4, .png and .csv here
+Servo model: Simulation()'s default, the fitted sts3215 (named in the plot, caption and log).
 """
 
 from so101sim import STARTING_POSE, ZERO_POSE, Recorder, Simulation
