@@ -79,7 +79,9 @@ class ReadySignal:
         if self.colour is None:  # nothing to look for: the first render is the signal
             return True
         height, width = RENDER_SIZE
-        image = client.get_render(height, width, transport_format="jpeg", timeout=30.0)
+        # a starved browser takes long to draw a frame: wait for it (a shorter wait would ask
+        # again and again and never see one)
+        image = client.get_render(height, width, transport_format="jpeg", timeout=READY_DEADLINE)
         return shows_colour(image, self.colour) >= MIN_PIXELS
 
     def _probe(self, client: Any) -> None:
