@@ -14,6 +14,11 @@ scripted expert sent in one 8 s episode, so every variant does the same physics)
 * ``gymnasium.vector.AsyncVectorEnv`` of 2 environments without images (environment steps of
   both together per second).
 
+Batched (``--only batched``, ``--worlds 64``): ``so101sim.envs.make_vec`` of 64 worlds, each
+replaying the same actions, against one raw ``mj_step`` thread measured in the same run; the
+ratio that matters is to (cores × raw), the most the cores could give; the stepper alone (the
+physics of all worlds, no observation or reward) shows what the Python of an env step costs.
+
 Success: ``evaluate_expert`` over seeds 0..N-1 of each task (each seed draws new start poses).
 Grasps: ``grasp_trials`` at ``--placements`` placements of 10-50 g cubes drawn from seed 0
 (pick, lift, hold 3 s), and cubes left on the table for 60 s. Ablation: the tuned contact
@@ -33,7 +38,7 @@ import mujoco
 import numpy as np
 
 import so101sim.envs  # noqa: F401  (registers the environments)
-from so101sim.envs import evaluate_expert, expert_for
+from so101sim.envs import TASKS, evaluate_expert, expert_for, make_vec
 from so101sim.envs.grasp import (
     GRASP_LIMITS,
     REST_LIMITS,
@@ -42,6 +47,7 @@ from so101sim.envs.grasp import (
     rest_trial,
 )
 from so101sim.scenes import ContactSettings
+from so101sim.sim.batched import default_threads
 
 ENV_ID = "so101sim/PickCube-v0"
 
@@ -133,9 +139,72 @@ def speed(repeats: int) -> None:
         print(f"  {name:38s} {rate:12.0f} {rate * 20:16.0f} {rate / base:8.2f}")
 
 
+def time_batched(actions: list[np.ndarray], worlds: int, physics_only: bool) -> float:
+    """``make_vec`` of ``worlds`` worlds, every world replaying the actions (or, physics
+    only, its WorldStepper alone stepping the same targets: what the Python of an env step
+    costs is the difference)."""
+    venv = make_vec("pick_cube", worlds, terminate_on_success=False, episode_seconds=3600.0)
+    venv.reset(seed=0)
+    rows = [np.repeat(a[None], worlds, axis=0) for a in actions]
+    try:
+        if physics_only:
+            envs = venv.envs
+            act, units = envs[0].sim.index.actuator, envs[0].sim.units
+            ctrl = [units.to_radians(np.asarray(a, dtype=float)) for a in actions]
+            t0 = time.perf_counter()
+            for q in ctrl:
+                for e in envs:
+                    e.sim.data.ctrl[act] = q
+                venv._stepper.advance(envs[0].substeps)
+            return time.perf_counter() - t0
+        t0 = time.perf_counter()
+        for a in rows:
+            venv.step(a)
+        return time.perf_counter() - t0
+    finally:
+        venv.close()
+
+
+def batched(repeats: int, worlds: int) -> None:
+    actions = expert_actions()
+    n = len(actions)
+    cores = default_threads()
+    runs = {
+        "raw mj_step(nstep=20), one thread": (lambda: time_raw(actions), 1),
+        f"WorldStepper, {worlds} worlds (physics only)": (
+            lambda: time_batched(actions, worlds, True),
+            worlds,
+        ),
+        f"make_vec, {worlds} worlds, no images": (
+            lambda: time_batched(actions, worlds, False),
+            worlds,
+        ),
+    }
+    best = dict.fromkeys(runs, np.inf)
+    for _ in range(repeats):
+        for name, (run, _) in runs.items():
+            best[name] = min(best[name], run())
+    base = n / best["raw mj_step(nstep=20), one thread"]
+    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
+    print(
+        f"batched: {n} environment steps of 20 physics steps per world (best of {repeats}, "
+        f"interleaved; {cores} cores for this process, load average {load})"
+    )
+    print(
+        f"  {'variant':44s} {'env steps/s':>12s} {'physics steps/s':>16s} {'vs raw':>7s} "
+        f"{'vs cores x raw':>15s}"
+    )
+    for name, (_, k) in runs.items():
+        rate = k * n / best[name]
+        print(
+            f"  {name:44s} {rate:12.0f} {rate * 20:16.0f} {rate / base:7.2f} "
+            f"{rate / (cores * base):15.2f}"
+        )
+
+
 def success(seeds: int) -> None:
     print(f"scripted experts over seeds 0..{seeds - 1}:")
-    for task in ("pick_cube", "cube_to_bowl"):
+    for task in TASKS:
         t0 = time.perf_counter()
         score = evaluate_expert(task, range(seeds))
         wall = time.perf_counter() - t0
@@ -205,10 +274,13 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=100)
     parser.add_argument("--placements", type=int, default=50)
     parser.add_argument("--ablation-placements", type=int, default=10)
-    parser.add_argument("--only", choices=("speed", "success", "grasps", "ablation"))
+    parser.add_argument("--worlds", type=int, default=64, help="worlds of the batched run")
+    parser.add_argument("--only", choices=("speed", "batched", "success", "grasps", "ablation"))
     args = parser.parse_args()
     if args.only in (None, "speed"):
         speed(args.repeats)
+    if args.only in (None, "batched"):
+        batched(min(args.repeats, 5), args.worlds)
     if args.only in (None, "success"):
         success(args.seeds)
     if args.only in (None, "grasps"):

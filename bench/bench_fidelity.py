@@ -114,12 +114,21 @@ def main() -> None:
     print(f"{len(chosen)} {split} runs of {len(runs)} in {args.path}")
 
     arms: list = list(args.arm or ["official", "sts3215"])
+    if args.arm is None:  # side by side: the shipped fit with friction that holds (noslip)
+        from dataclasses import replace
+
+        from so101sim.model.arm import load_profile
+
+        held = replace(load_profile("sts3215"), name="sts3215-hold", static_friction=True)
+        arms.insert(2, held)
     if args.fit is not None:
         arms.append(fit_profile(fit, args.fit, args.iterations, args.spread))
     columns: dict[str, dict[str, float]] = {}
     times: dict[str, float] = {}
     for arm in arms:
-        label = Path(arm).stem if str(arm).endswith(".toml") else str(arm)
+        label = getattr(arm, "name", None) or (
+            Path(arm).stem if str(arm).endswith(".toml") else str(arm)
+        )
         t0 = time.perf_counter()
         pred = simulate_runs(chosen, arm)
         times[label] = time.perf_counter() - t0

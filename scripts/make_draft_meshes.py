@@ -9,6 +9,8 @@ so nothing is generated at run time; rerun this script only when the model's mes
 
     pip install fast-simplification
     python scripts/make_draft_meshes.py            # default: 5000 faces per mesh
+    python scripts/make_draft_meshes.py --faces 800 --dest src/so101sim/data/draft_meshes_small
+                                                   # the set for frames up to 256 pixels
 
 Only the rendering uses them: collision geometry (and so the physics) keeps the originals.
 """

@@ -126,3 +126,39 @@ def write_csv(path: Path, ep: Episode) -> Path:
         lines.append(",".join(vals))
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+TRUE_CALIBRATION = {
+    "shoulder_lift": {"scale": 1.06, "offset": 3.0},
+    "elbow_flex": {"scale": 0.94, "offset": -4.0},
+    "wrist_flex": {"scale": 1.04, "offset": 2.5},
+}
+"""The hidden arm's calibration errors: a joint reads ``scale`` × its angle + ``offset``."""
+
+
+def as_read(episodes: list[Episode], cal: dict, blocked: tuple[float, float] | None = None):
+    """``episodes`` as a miscalibrated follower reads them (``cal``), and, over ``blocked``
+    (s), a gripper closing on an object: commanded shut (5) but held at 40."""
+    from so101sim.fidelity.calibration import to_log
+
+    out = []
+    for ep in episodes:
+        cmd, meas = to_log(ep.command, cal), to_log(ep.measured, cal)
+        if blocked is not None:
+            m = (ep.times >= blocked[0]) & (ep.times < blocked[1])
+            cmd[m, 5], meas[m, 5] = 5.0, 40.0
+        out.append(Episode(ep.index, ep.times, cmd, meas))
+    return out
+
+
+def range_mode(units):
+    """A transform of arm units to LeRobot's range mode (−100..100 mapped onto the model's
+    joint ranges: what ``compare`` and ``fit`` assume without a calibration JSON)."""
+    lo, hi = units.limits
+
+    def tf(values):
+        v = np.array(values, dtype=float).copy()
+        v[:5] = (v[:5] - (hi + lo)[:5] / 2) / ((hi - lo)[:5] / 200.0)
+        return v
+
+    return tf

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import ast
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -113,10 +114,48 @@ def test_no_flat_modules():
     )
 
 
+def _may_import(package: str, doc: str) -> set[str]:
+    """The packages and top-level modules a package's docstring says it may import: its
+    ``May import:`` sentence, naming ``so101sim.<name>`` in double backticks, "the base
+    modules" (the base layer) or "every package"."""
+    found = re.search(r"May import:(.*?)(?:\.\s|\.$)", doc, re.DOTALL)
+    assert found, (
+        f"so101sim.{package}'s docstring has no 'May import: ...' sentence; expected one "
+        "naming what it may import (``so101sim.<package>`` and/or the base modules)"
+    )
+    text = " ".join(found.group(1).split())
+    if "every package" in text:
+        return {name for _, names in LAYERS for name in names}
+    names = set(re.findall(r"``so101sim\.(\w+)``", text))
+    if "the base modules" in text:
+        names |= set(LAYERS[0][1])
+    return names
+
+
 def test_every_package_says_what_it_may_import():
+    """Each package's docstring names what it may import; it imports nothing else, and names
+    nothing the layers forbid (docs/architecture.md)."""
+    actual: dict[str, set[str]] = {}
+    for a, targets in _graph().items():
+        top = a.split(".")[0]
+        actual.setdefault(top, set()).update(b.split(".")[0] for b in targets)
     for init in sorted(PACKAGE.glob("*/__init__.py")):
+        package = init.parent.name
+        if package == "data":
+            continue
         doc = ast.get_docstring(ast.parse(init.read_text(encoding="utf-8"))) or ""
-        assert doc, f"so101sim.{init.parent.name} has no docstring"
+        assert doc, f"so101sim.{package} has no docstring"
+        allowed = _may_import(package, doc) - {package}
+        extra = sorted(actual.get(package, set()) - allowed - {package})
+        assert not extra, (
+            f"so101sim.{package} imports {extra}, which its docstring's 'May import:' does not "
+            "name; expected the docstring to say what the package imports"
+        )
+        above = sorted(n for n in allowed if _layer(n) > _layer(package))
+        assert not above, (
+            f"so101sim.{package}'s docstring says it may import {above}, from a layer above "
+            "its own; expected only its own layer and those below (docs/architecture.md)"
+        )
 
 
 def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
@@ -230,3 +269,126 @@ def test_unknown_old_paths_still_fail():
     for name in ("so101sim.nope", "so101sim.robot_nope", "so101sim.sim.nope"):
         with pytest.raises(ModuleNotFoundError):
             importlib.import_module(name)
+
+
+PLUGINS = PACKAGE.parents[1] / "plugins"
+
+
+def _public(module: str, name: str) -> bool:
+    """Whether ``from <module> import <name>`` uses so101sim's public API: ``module`` is
+    ``so101sim``, one of its packages or a top-level module whose name has no leading
+    underscore, and ``name`` is in its ``__all__`` (a module with none: a name without a
+    leading underscore), or is itself such a package or module."""
+    import importlib
+
+    parts = module.split(".")
+    if len(parts) > 2 or any(p.startswith("_") for p in parts) or name.startswith("_"):
+        return False
+    inner = len(parts) == 2 and not (PACKAGE / parts[1] / "__init__.py").is_file()
+    if inner and parts[1] not in TOP_LEVEL_MODULES:
+        return False
+    mod = importlib.import_module(module)
+    public = getattr(mod, "__all__", None)
+    if public is not None and name in public:
+        return True
+    if public is None and hasattr(mod, name):
+        return True
+    return module == "so101sim" and (
+        (PACKAGE / name / "__init__.py").is_file() or name in TOP_LEVEL_MODULES
+    )
+
+
+def test_plugins_import_only_public_names():
+    """The LeRobot plugins use so101sim's public API: names exported by a package's (or a
+    public top-level module's) ``__all__``, never a private name or an inner module."""
+    bad = []
+    for path in sorted(PLUGINS.glob("*/lerobot_*/**/*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            where = f"{path.relative_to(PLUGINS)}:{getattr(node, 'lineno', 0)}"
+            if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "so101sim":
+                bad += [
+                    f"{where}: from {node.module} import {a.name}"
+                    for a in node.names
+                    if not _public(node.module, a.name)
+                ]
+            elif isinstance(node, ast.Import):
+                for a in node.names:
+                    parts = a.name.split(".")
+                    if (
+                        parts[0] == "so101sim"
+                        and len(parts) > 1
+                        and not _public(".".join(parts[:-1]), parts[-1])
+                    ):
+                        bad.append(f"{where}: import {a.name}")
+    assert not bad, (
+        f"the plugins import so101sim's internals: {bad}; expected names from a package's "
+        "__all__ (export what a plugin needs from the package's __init__)"
+    )
+
+
+@pytest.mark.parametrize(
+    "line",
+    [
+        "from so101sim.robot.scene import find_follower",
+        "from so101sim.robot import _private",
+        "from so101sim.model.arm import load_profile",
+        "import so101sim.motion.file",
+        "from so101sim._compat import install",
+    ],
+)
+def test_the_public_api_check_refuses_internals(line):
+    node = ast.parse(line).body[0]
+    if isinstance(node, ast.ImportFrom):
+        assert not all(_public(node.module, a.name) for a in node.names)
+    else:
+        parts = node.names[0].name.split(".")
+        assert not _public(".".join(parts[:-1]), parts[-1])
+
+
+# The stepping kernel's modules: the only ones that may call MuJoCo's stepping functions
+# (docs/architecture.md: "nothing else in so101sim calls mj_step or mujoco.rollout").
+KERNEL = {"sim.stepping", "sim.batch", "sim.batched"}  # batched: make_vec's worlds (issue 33)
+_STEP_NAMES = {"mj_step", "mj_step1", "mj_step2", "rollout", "Rollout"}
+
+
+def _stepping_calls(tree: ast.AST) -> list[tuple[int, str]]:
+    """``(line, name)`` of each call of a MuJoCo stepping function (``mujoco.mj_step``,
+    ``rollout.rollout``, ``pool.rollout``, ``Rollout(...)``) and each import of
+    ``mujoco.rollout`` in ``tree``."""
+    hits = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            f = node.func
+            name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", "")
+            if name in _STEP_NAMES:
+                hits.append((node.lineno, name))
+        elif isinstance(node, ast.ImportFrom) and node.module and "mujoco" in node.module:
+            if node.module == "mujoco.rollout" or any(a.name == "rollout" for a in node.names):
+                hits.append((node.lineno, "import mujoco.rollout"))
+        elif isinstance(node, ast.Import) and any(a.name == "mujoco.rollout" for a in node.names):
+            hits.append((node.lineno, "import mujoco.rollout"))
+    return hits
+
+
+def test_only_the_stepping_kernel_steps_mujoco():
+    outside = [
+        f"{name}:{line} {call}"
+        for name, path in _modules().items()
+        if name not in KERNEL
+        for line, call in _stepping_calls(ast.parse(path.read_text(encoding="utf-8")))
+    ]
+    assert not outside, (
+        f"MuJoCo stepped outside the kernel ({', '.join(sorted(KERNEL))}): {outside}"
+    )
+
+
+def test_the_stepping_site_check_finds_each_kind_of_call():
+    code = (
+        "import mujoco\nfrom mujoco import rollout\nimport mujoco.rollout\n"
+        "mujoco.mj_step(m, d, nstep=2)\nrollout.rollout(ms, ds, s, c)\npool.rollout(ms, ds, s, c)\n"
+        "mujoco.mj_step1(m, d)\nx = mujoco.mj_forward(m, d)\n"
+    )
+    found = [c for _, c in _stepping_calls(ast.parse(code))]
+    assert found.count("import mujoco.rollout") == 2
+    assert found.count("rollout") == 2 and "mj_step" in found and "mj_step1" in found
+    assert "mj_forward" not in found

@@ -17,68 +17,89 @@ import pytest
 from so101sim.errors import ClosedError
 from so101sim.exitgate import ExitGate
 
+# Each program is (setup, run): the setup (making the robot, simulation or environment: the
+# slow part, a model load) runs once in the parent; each child runs ``run`` on what the setup
+# made, then ends. ``run`` starts a daemon thread that calls MuJoCo in a loop and waits for its
+# first call (an event, not a sleep): the child then exits with the thread in the loop.
 PROGRAMS = {
-    "robot": """
-        import sys, threading, time
+    "robot": (
+        """
+        import sys, threading
         from so101sim.robot import SO101SimFollower, SO101SimFollowerConfig
         mode, disconnect = sys.argv[1], sys.argv[2] == "1"
         robot = SO101SimFollower(SO101SimFollowerConfig(id="x", mode=mode))
-        robot.connect()
-        calls = []
+        """,
+        """
+        robot.connect()  # in the child: a real-time robot's physics thread starts here
+        called = threading.Event()
         def loop():
             while True:
                 try:
                     robot.send_action({"elbow_flex.pos": 5.0})
                     robot.get_observation()
-                    calls.append(1)
+                    called.set()
                 except Exception:
                     pass
         threading.Thread(target=loop, daemon=True).start()
-        time.sleep(0.05)
-        assert calls, "the thread never sent an action"
+        assert called.wait(60), "the thread never sent an action"
         if disconnect:
             robot.disconnect()
-    """,
-    "simulation": """
-        import threading, time
+        """,
+    ),
+    "simulation": (
+        """
+        import threading
         from so101sim import Simulation, ZERO_POSE
         sim = Simulation()
+        """,
+        """
+        called = threading.Event()
         def loop():
             while True:
                 try:
                     sim.move_to(ZERO_POSE, 0.5)
                     sim.reset()
+                    called.set()
                 except Exception:
                     pass
         threading.Thread(target=loop, daemon=True).start()
-        time.sleep(0.05)
-    """,
-    "environment": """
-        import threading, time
+        assert called.wait(60), "the thread never stepped"
+        """,
+    ),
+    "environment": (
+        """
+        import threading
         import gymnasium as gym, so101sim.envs
         env = gym.make("so101sim/PickCube-v0")
         env.reset(seed=0)
+        """,
+        """
+        called = threading.Event()
         def loop():
             while True:
                 try:
                     env.step(env.action_space.sample())
+                    called.set()
                 except Exception:
                     pass
         threading.Thread(target=loop, daemon=True).start()
-        time.sleep(0.05)
-    """,
+        assert called.wait(60), "the thread never stepped"
+        """,
+    ),
 }
 
 
 # Each exit is a child forked from a process that has imported so101sim, MuJoCo and
-# Gymnasium already (0.1 s a child instead of a second): the child runs the program and then
-# ends as any program does, through the interpreter's finalisation; the parent collects the
-# exit codes (-11: killed by SIGSEGV).
+# Gymnasium and run the program's setup already (a few ms a child instead of a second): the
+# child runs the program and then ends as any program does, through the interpreter's
+# finalisation; the parent collects the exit codes (-11: killed by SIGSEGV).
 DRIVER = """
-import json, os, sys, textwrap
+import gc, json, os, sys
 import gymnasium, mujoco, so101sim.envs, so101sim.robot
-program, runs = sys.argv[1], int(sys.argv[2])
-sys.argv = [sys.argv[0], *sys.argv[3:]]
+setup, program, runs = sys.argv[1], sys.argv[2], int(sys.argv[3])
+sys.argv = [sys.argv[0], *sys.argv[4:]]
+exec(compile(setup, "<setup>", "exec"))
+gc.freeze()  # the children never walk the parent's heap: their exit takes 0.1 s, not 1 s
 codes = []
 for _ in range(runs):
     pid = os.fork()
@@ -93,11 +114,12 @@ else:
 
 
 def _exit_codes(program: str, args: list[str], runs: int) -> list[int]:
+    setup, run = (textwrap.dedent(part) for part in PROGRAMS[program])
     proc = subprocess.run(
-        [sys.executable, "-c", DRIVER, textwrap.dedent(PROGRAMS[program]), str(runs), *args],
+        [sys.executable, "-c", DRIVER, setup, run, str(runs), *args],
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=600,
         env=os.environ.copy(),
     )
     assert proc.returncode == 0, proc.stderr[-3000:]

@@ -53,9 +53,10 @@ def test_a_name_is_imported_on_first_use_from_its_type_checking_import(package):
 
 
 def test_the_packages_offer_what_they_offered():
-    assert {"Simulation", "ViewerError", "__version__", "record", "preflight"} <= set(
+    assert {"Simulation", "ViewerError", "__version__", "record", "check_motion_file"} <= set(
         so101sim.__all__
     )
+    assert "preflight" not in so101sim.__all__  # the subpackage (a function before issue 30)
     assert "lazy_names" not in so101sim.__all__  # a private module's name is not offered
     assert {"Recorder", "VideoSettings", "video_frames"} <= set(so101sim.recording.__all__)
     assert so101sim.recording.video.__name__ == "so101sim.recording.video"
@@ -71,3 +72,27 @@ def test_the_labs_light_modules_import_no_mujoco():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "True", "so101sim.lab.helpers"]
+
+
+@pytest.mark.parametrize(
+    "first", ["", "import so101sim.preflight", "from so101sim import check_motion_file"]
+)
+def test_so101sim_preflight_is_the_subpackage_whatever_was_imported_first(first):
+    import subprocess
+
+    code = (
+        f"{first}\nimport types, warnings\nfrom so101sim import preflight\n"
+        "import so101sim\n"
+        "assert isinstance(preflight, types.ModuleType) and so101sim.preflight is preflight\n"
+        "assert callable(preflight.preflight) and preflight.preflight is not preflight\n"
+        "from so101sim.motion import Hold\n"
+        "with warnings.catch_warnings(record=True) as w:\n"
+        "    warnings.simplefilter('always')\n"
+        "    report = so101sim.preflight([Hold(0.02)])\n"
+        "assert report.passed and any(x.category is DeprecationWarning for x in w)\n"
+        "print('ok')\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=False
+    )
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr

@@ -46,12 +46,16 @@ if TYPE_CHECKING:
     from .model import load_model, model_dir, scene_path
     from .motion import LAB_MOTION, Hold, Move, RunResult, Segment, run_motion
     from .motion.file import MotionFile, lab_motion_path, load_motion
-    from .preflight import PreflightReport, Thresholds, check_motion_file, preflight
+    from .preflight import PreflightReport, Thresholds, check_motion_file
     from .recording import Recorder, VideoSettings, plot_run
     from .robot import SO101SimFollower, SO101SimFollowerConfig
     from .sim import Pacer, SegmentResult, Simulation
     from .units import JOINT_NAMES, STARTING_POSE, ZERO_POSE
 
+
+# ``so101sim.preflight`` is the subpackage, whatever was imported first (it was also the
+# function ``preflight.preflight``, depending on import order); calling it still works, with a
+# DeprecationWarning, for one release.
 
 __version__ = "0.1.0"
 

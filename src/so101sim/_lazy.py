@@ -21,6 +21,7 @@ import importlib.util
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 
@@ -67,7 +68,9 @@ def lazy_names(package: str) -> tuple[Callable[[str], Any], Callable[[], list[st
         eager = [  # public names the package imported from its own public modules
             k
             for k, v in namespace.items()
-            if not k.startswith("_") and _is_public_module_of(getattr(v, "__module__", ""), package)
+            if not k.startswith("_")
+            and not isinstance(v, ModuleType)  # a submodule is no name (a callable one too)
+            and _is_public_module_of(getattr(v, "__module__", ""), package)
         ]
         extra = ["__version__"] if "__version__" in namespace else []
         return sorted({*eager, *table(), *extra})

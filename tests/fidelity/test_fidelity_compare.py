@@ -106,7 +106,8 @@ def test_cli_json_is_one_object_on_stdout(tmp_path, episodes, true_toml, capsys)
     assert code == 0
     out = capsys.readouterr()
     obj = json.loads(out.out)
-    assert set(obj) == {"frames", "episodes", "joints", "command_baseline"}
+    assert set(obj) == {"frames", "episodes", "joints", "command_baseline", "holds", "moves",
+                        "worst_windows", "gripper_blocked_frames"}  # fmt: skip
     assert obj["frames"] == 120 and obj["episodes"] == [0, 1]
     assert set(obj["joints"]) == set(JOINT_NAMES)
     assert set(obj["joints"]["elbow_flex"]) == {"mae", "rms", "max", "lag_s"}

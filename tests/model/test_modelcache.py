@@ -201,3 +201,71 @@ def test_a_model_that_cannot_be_trimmed_is_not_tried_again(cache, tmp_path, monk
     assert again.nflex == 1
     modelcache.clear()
     assert not list(cache.glob(f"*{modelcache.REFUSED_SUFFIX}"))
+
+
+def test_a_swapped_entry_is_caught_digests_included(cache, caplog):
+    """Issue 30: swapping ``<key>.mjb`` with ``<key>-physics2.mjb`` (their digests too) made
+    load_or_compile return the physics-only model; each entry is bound to its key and kind."""
+    full = modelcache.load_or_compile(scene_path(), _compile)
+    physics = modelcache.load_or_compile(scene_path(), _compile, physics_only=True)
+    assert full.ngeom > physics.ngeom  # the physics-only copy has no visual geoms
+    entry = next(p for p in cache.glob("*.mjb") if "-physics" not in p.name)
+    other = next(p for p in cache.glob("*.mjb") if "-physics" in p.name)
+    for a, b in ((entry, other), (modelcache._digest_of(entry), modelcache._digest_of(other))):
+        tmp = a.with_name("swap")
+        a.rename(tmp)
+        b.rename(a)
+        tmp.rename(b)
+    with caplog.at_level("WARNING", logger="so101sim.model.cache"):
+        again = modelcache.load_or_compile(scene_path(), _compile)
+        again_physics = modelcache.load_or_compile(scene_path(), _compile, physics_only=True)
+    assert (again.ngeom, again_physics.ngeom) == (full.ngeom, physics.ngeom)
+    messages = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(messages) == 2 and all("another key or kind" in m for m in messages)
+
+
+def test_cache_clear_leaves_a_folder_named_like_an_entry_with_a_warning(cache, caplog):
+    modelcache.load_or_compile(scene_path(), _compile)
+    (cache / "odd.mjb").mkdir()
+    (cache / "odd.mjb" / "inside").write_text("x")
+    with caplog.at_level("WARNING", logger="so101sim.model.cache"):
+        gone = modelcache.clear()
+    assert gone.entries == 1  # the folder is no entry
+    assert sorted(p.name for p in cache.iterdir()) == ["odd.mjb"]
+    assert "odd.mjb" in caplog.text and "by hand" in caplog.text
+    assert modelcache.info().entries == 0
+
+
+def test_cache_clear_on_the_command_line_with_a_folder_entry(cache, capsys):
+    from so101sim import cli
+
+    (cache).mkdir(parents=True, exist_ok=True)
+    (cache / "odd.mjb").mkdir()
+    assert cli.main(["cache", "clear"]) == 0
+    assert "deleted 0 compiled model(s)" in capsys.readouterr().out
+
+
+def test_stale_partial_files_of_a_killed_writer_are_deleted_by_the_next_write(cache):
+    cache.mkdir(parents=True)
+    stale, fresh = cache / ".old123.partial", cache / ".new456.partial"
+    stale.write_bytes(b"half a model")
+    fresh.write_bytes(b"a writer at work")
+    hour_ago = os.path.getmtime(fresh) - modelcache.STALE_PARTIAL_S - 60
+    os.utime(stale, (hour_ago, hour_ago))
+    modelcache.load_or_compile(scene_path(), _compile)  # writes an entry
+    assert not stale.exists()
+    assert fresh.exists()  # a live writer's file is left alone
+
+
+def test_a_model_folder_too_large_to_hash_is_said_once(cache, tmp_path, monkeypatch, caplog):
+    folder = tmp_path / "big"
+    folder.mkdir()
+    xml = folder / "m.xml"
+    xml.write_text("<mujoco><worldbody><geom size='.1'/></worldbody></mujoco>")
+    monkeypatch.setattr(modelcache, "MAX_HASHED_BYTES", 10)
+    with caplog.at_level("WARNING", logger="so101sim.model.cache"):
+        for _ in range(3):
+            modelcache.load_or_compile(xml, lambda: mujoco.MjModel.from_xml_path(str(xml)))
+    warnings = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(warnings) == 1 and "not caching" in warnings[0] and str(folder) in warnings[0]
+    assert modelcache.info().entries == 0

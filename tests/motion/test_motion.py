@@ -63,7 +63,7 @@ def test_linear_move_commands_straight_lines_ending_on_target(sim):
 
 
 def test_minimum_jerk_profile_is_smooth_at_both_ends(sim):
-    r = sim.move_to(ZERO_POSE, 1.0, profile="minimum_jerk")
+    r = sim.move_to(ZERO_POSE, 1.0, shape="minimum_jerk")
     c = r.commanded
     first = np.abs(c[1] - c[0]).max()
     middle = np.abs(c[251] - c[250]).max()
@@ -105,7 +105,7 @@ def test_steps_for():
 
 def test_unknown_profile_lists_valid_ones(sim):
     with pytest.raises(So101SimError, match="linear") as e:
-        sim.move_to(ZERO_POSE, 1.0, profile="cubic")
+        sim.move_to(ZERO_POSE, 1.0, shape="cubic")
     assert "minimum_jerk" in str(e.value)
 
 

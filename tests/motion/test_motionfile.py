@@ -489,7 +489,7 @@ def test_a_tip_move_loads_as_a_tip_move_and_the_next_steps_continue_from_its_end
     assert mf.lines == (3, 7, 11)
     # the gripper step keeps the pose the line really ends on, as the run will command it
     sim = Simulation(initial_pose=mf.start)
-    _, targets = sim.plan_tip_move(first.tip, 1.0, pitch=-90, profile="minimum_jerk")
+    _, targets = sim.plan_tip_move(first.tip, 1.0, pitch=-90, shape="minimum_jerk")
     end = sim.units.array_to_pose(targets[-1])
     assert grip.target == {**end, "gripper": 50.0}
 

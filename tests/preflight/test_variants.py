@@ -12,10 +12,11 @@ import pytest
 from so101sim.errors import MotionFileError, SettingError
 from so101sim.model import load_model, scene_path
 from so101sim.motion.file import lab_motion_path, load_motion
+from so101sim.preflight.accumulate import run_lengths as _run_lengths
 from so101sim.preflight.judge import Thresholds
 from so101sim.preflight.measure import measure
 from so101sim.preflight.robust import check_variants, format_variants, plot_variants
-from so101sim.preflight.rollout import Worker, _run_lengths, plan_motion, sensor_model
+from so101sim.preflight.rollout import Worker, plan_motion, sensor_model
 from so101sim.preflight.variants import (
     MAX_VARIANTS,
     VariantRanges,

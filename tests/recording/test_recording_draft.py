@@ -31,8 +31,27 @@ def test_draft_uses_fewer_visual_triangles_and_keeps_the_bodies():
     assert full.vis.quality.offsamples == sim.model.vis.quality.offsamples
 
 
-def test_shipped_draft_meshes_match_their_manifest():
-    folder = rec.draft_mesh_dir()
+def test_small_frames_are_drawn_with_the_smaller_meshes():
+    from so101sim.recording.draft import SMALL_FRAME_PX
+
+    sim = Simulation()
+
+    def faces(m: mujoco.MjModel) -> int:
+        return sum(int(m.mesh_facenum[i]) for i in range(m.nmesh))
+
+    big = rec.render_model(sim.model, "draft", 640, 480)
+    small = rec.render_model(sim.model, "draft", 128, 96)
+    edge = rec.render_model(sim.model, "draft", SMALL_FRAME_PX, SMALL_FRAME_PX)
+    assert (small.nq, small.nbody) == (big.nq, big.nbody)
+    assert faces(small) < faces(big) / 3
+    assert faces(edge) == faces(small)
+    full_small = rec.render_model(sim.model, "full", 128, 96)  # "full" keeps the model's look
+    assert faces(full_small) == faces(rec.render_model(sim.model, "full", 640, 480))
+
+
+@pytest.mark.parametrize("small", [False, True], ids=["draft", "small"])
+def test_shipped_draft_meshes_match_their_manifest(small):
+    folder = rec.draft_mesh_dir(small)
     manifest = json.loads((folder / "manifest.json").read_text())["meshes"]
     stls = sorted(p.name for p in folder.glob("*.stl"))
     assert stls == sorted(manifest)

@@ -48,3 +48,22 @@ def test_the_plot_heading_and_the_video_caption_name_it(tmp_path, monkeypatch):
         caption = r.video.caption(sim.data)
     assert seen["servo"] == servo_model(load_model()) and seen["servo"].startswith("sts3215 (")
     assert caption.endswith("servos: sts3215"), caption
+
+
+def test_the_plot_heading_names_no_command_it_did_not_come_from(tmp_path, monkeypatch):
+    # `so101sim record my_lab.py --plot` draws the same plot as `run`: its heading said
+    # "so101sim run:" for a run of the student's own script
+    from matplotlib.figure import Figure
+
+    headings = []
+    real = Figure.suptitle
+    monkeypatch.setattr(
+        Figure, "suptitle", lambda fig, t, **kw: headings.append(t) or real(fig, t, **kw)
+    )
+    sim = Simulation(arm="official")
+    with rec.Recorder(sim, plot=tmp_path / "a.png", settings=SMALL):
+        sim.hold(0.1)
+    assert headings == [
+        "so101sim: commanded vs measured joint angles\n"
+        "servo model: official (the model file's own ideal position actuators)"
+    ]

@@ -7,7 +7,12 @@ import pytest
 from fakes import FakeClock
 
 from so101sim import Simulation
-from so101sim.errors import JointLimitError, SimulationDivergedError
+from so101sim.errors import (
+    JointLimitError,
+    JointValueError,
+    SettingError,
+    SimulationDivergedError,
+)
 from so101sim.model import load_model
 from so101sim.sim.simulation import Observer, Pacer, ViewerObserver, advance
 from so101sim.units import STARTING_POSE, ZERO_POSE
@@ -364,7 +369,7 @@ def test_tip_moves_in_a_straight_line_and_report_the_tracking():
     sim = Simulation(initial_pose=ZERO_POSE, arm="official")  # the planner, on ideal servos
     start = sim.tip().position
     goal = (0.25, 0.05, 0.10)
-    r = sim.move_to(tip=goal, pitch=-60, duration=2.0, profile="minimum_jerk", trace=True)
+    r = sim.move_to(tip=goal, pitch=-60, duration=2.0, shape="minimum_jerk", trace=True)
     commanded = line_deviation(r.commanded, start, goal, model=sim.model)
     measured = line_deviation(r.measured, start, goal, model=sim.model)
     assert commanded.max_mm <= 2.0  # the commanded tip stays on the line
@@ -388,14 +393,14 @@ def test_a_joint_space_tip_move_ends_at_the_tip_and_paths_are_checked():
     from so101sim.errors import DurationError, SettingError
 
     sim = Simulation(arm="official")  # the planner, on ideal servos (sts3215 sags ~1 cm here)
-    sim.move_to(tip=(0.2, -0.1, 0.05), pitch=-90, duration=2.0, path="joint", profile="limited")
+    sim.move_to(tip=(0.2, -0.1, 0.05), pitch=-90, duration=2.0, path="joint", shape="limited")
     sim.hold(0.5)
     assert np.linalg.norm(sim.tip().position - (0.2, -0.1, 0.05)) < 0.005
     assert sim.tip().pitch == pytest.approx(-90, abs=2.0)
     with pytest.raises(SettingError, match="valid paths are line, joint"):
         sim.move_to(tip=(0.2, 0, 0.1), duration=1.0, path="arc")
     with pytest.raises(SettingError, match="straight-line"):
-        sim.move_to(tip=(0.2, 0, 0.1), duration=1.0, profile="limited")
+        sim.move_to(tip=(0.2, 0, 0.1), duration=1.0, shape="limited")
     with pytest.raises(DurationError, match="missing"):
         sim.move_to(tip=(0.2, 0, 0.1))
     with pytest.raises(SettingError, match="target pose or tip"):
@@ -440,11 +445,59 @@ def test_a_never_commanded_arm_holds_its_pose_with_nothing_watching():
 
 
 def test_pose_values_are_the_pose_array_as_plain_floats():
+    from so101sim.sim import fastpath
+
     sim = Simulation()
     sim.move_to({**ZERO_POSE, "shoulder_pan": 20, "elbow_flex": 10, "gripper": 40}, 0.5)
-    values = sim.pose_values()
+    values = fastpath.pose_values(sim)
     assert all(type(v) is float for v in values)
     assert values == sim.pose_array().tolist()
+    with pytest.warns(DeprecationWarning, match="fastpath.pose_values"):
+        assert sim.pose_values() == values  # the old spelling, for one release
+
+
+def test_the_old_spellings_warn_and_do_what_they_did():
+    from so101sim.sim import fastpath
+
+    sim, other = Simulation(), Simulation()
+    with pytest.warns(DeprecationWarning, match="fastpath.command_joints"):
+        sim.command_joints([1, 5], [-10.0, 30.0])
+    fastpath.command_joints(other, [1, 5], [-10.0, 30.0])
+    assert sim.commanded() == other.commanded()
+    with pytest.warns(DeprecationWarning, match="use shape="):
+        old = sim.move_to(ZERO_POSE, 0.2, profile="minimum_jerk")
+    new = other.move_to(ZERO_POSE, 0.2, shape="minimum_jerk")
+    assert old.reached == new.reached
+    with pytest.raises(SettingError, match="shape= only"):
+        sim.plan_move(ZERO_POSE, 0.2, shape="linear", profile="linear")
+
+
+@pytest.mark.parametrize(
+    ("values", "match"),
+    [
+        (np.zeros(5), r"shape \(5,\); expected six numbers"),
+        (np.full(6, np.nan), "shoulder_pan = nan is not a finite number"),
+        ([0, 0, 0, np.inf, 0, 50], "wrist_flex = inf is not a finite number"),
+        ("x", "are not numbers; expected six numbers"),
+        (None, "are not numbers|shape"),
+    ],
+)
+def test_command_array_refuses_what_is_not_six_finite_numbers(values, match):
+    """Issue 30: NaN passed command_array; np.zeros(5) gave a bare broadcasting error."""
+    sim = Simulation()
+    before = sim.commanded()
+    for check in (True, False):
+        with pytest.raises(JointValueError, match=match):
+            sim.command_array(values, check=check)
+    assert sim.commanded() == before  # nothing was set
+
+
+def test_set_initial_pose_without_data_says_what_it_expected():
+    from so101sim.lab.helpers import send_position_command, set_initial_pose
+
+    for call in (set_initial_pose, send_position_command):
+        with pytest.raises(SettingError, match=r"not a mujoco\.MjData; expected the d of"):
+            call(None, STARTING_POSE)
 
 
 def test_a_viewer_that_draws_slowly_is_synced_less_often_so_the_run_keeps_real_time(sim):

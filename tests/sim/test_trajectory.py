@@ -9,20 +9,23 @@ import numpy as np
 import pytest
 
 from so101sim.errors import SettingError, So101SimError, TrajectoryLimitError
-from so101sim.model import default_units
+from so101sim.model import default_units, load_model
 from so101sim.motion import PROFILES, Hold, Move, get_profile, run_motion
-from so101sim.sim.limited import (
-    STS3215_LIMITS,
-    JointLimits,
-    LimitedProfile,
-    check_limited_moves,
-)
+from so101sim.motion.plan import plan_segments
+from so101sim.sim.limited import STS3215_LIMITS, JointLimits, LimitedProfile
 from so101sim.sim.simulation import Simulation
 from so101sim.units import JOINT_NAMES, STARTING_POSE, ZERO_POSE
 
 DT = 0.002
 START = default_units().pose_to_array(STARTING_POSE)
 TARGET = np.array([20.0, -10.0, 30.0, -15.0, 40.0, 60.0])
+
+
+def check_limited_moves(start, steps, dt, *, strict=False):
+    """The ``limited`` moves too short for the limits, as the motion planner finds them."""
+    model = load_model()
+    assert model.opt.timestep == dt
+    return list(plan_segments(model, steps, start, strict=strict).stretched)
 
 
 def _derivatives(start: np.ndarray, out: np.ndarray, dt: float):
@@ -157,7 +160,7 @@ def test_limited_runs_smoother_than_linear_in_the_simulation():
     errors = {}
     for name in ("linear", "limited"):
         sim = Simulation(arm="official")  # the ideal actuator: the error is the profile's own
-        seg = sim.move_to(ZERO_POSE, 2.0, profile=name)
+        seg = sim.move_to(ZERO_POSE, 2.0, shape=name)
         errors[name] = seg.worst_tracking_error[1]
     assert errors["limited"] < errors["linear"]
 

@@ -5,7 +5,8 @@ name starts with ``lerobot_env_`` and equals this package's name), which registe
 
 - ``--env.type=so101sim_pick_cube``: :class:`SO101SimPickCubeEnv` (``so101sim/PickCube-v0``);
 - ``--env.type=so101sim_cube_to_bowl``: :class:`SO101SimCubeToBowlEnv`
-  (``so101sim/CubeToBowl-v0``).
+  (``so101sim/CubeToBowl-v0``);
+- ``--env.type=so101sim_reach``: :class:`SO101SimReachEnv` (``so101sim/Reach-v0``).
 
 Importing it also registers the Gymnasium environments (``import so101sim.envs``), so
 ``lerobot.envs.factory.make_env(config)`` finds them in every process.
@@ -20,6 +21,7 @@ from .configs import (
     SO101SimCubeToBowlEnv,
     SO101SimEnvConfig,
     SO101SimPickCubeEnv,
+    SO101SimReachEnv,
 )
 
 __version__ = "0.1.0"
@@ -31,4 +33,5 @@ __all__ = [
     "SO101SimCubeToBowlEnv",
     "SO101SimEnvConfig",
     "SO101SimPickCubeEnv",
+    "SO101SimReachEnv",
 ]

@@ -39,7 +39,7 @@ from lerobot.envs.configs import EnvConfig
 from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 
 from so101sim.errors import SettingError
-from so101sim.model.arm import load_profile
+from so101sim.model import load_profile
 from so101sim.recording import QUALITY_CHOICES
 from so101sim.scenes import PRESET_CAMERAS, SCENE_PRESETS, randomization
 from so101sim.units import JOINT_NAMES
@@ -49,8 +49,24 @@ NAMESPACE = "so101sim"
 """The Gymnasium namespace of so101sim's environments (``so101sim/PickCube-v0``)."""
 ENV_MODULE = "so101sim.envs"
 """The module whose import registers them (LeRobot imports ``package_name`` if needed)."""
-TASK_SCENES = {"PickCube-v0": "pick_cube", "CubeToBowl-v0": "cube_to_bowl"}
+TASK_SCENES = {
+    "PickCube-v0": "pick_cube",
+    "CubeToBowl-v0": "cube_to_bowl",
+    "Reach-v0": "pick_cube",
+    "LiftCylinder-v0": "lift_cylinder",
+    "LiftSphere-v0": "lift_sphere",
+}
 """Each task (``--env.task``) and the scene preset it is played in."""
+TASK_EXTRA_STATE = {"Reach-v0": 6}
+"""Numbers a task's ``environment_state`` holds after the objects' poses (reach: the target
+and the tip, x y z each)."""
+
+
+def state_size(task: str) -> int:
+    """The length of ``task``'s ``environment_state``: 7 per object, then the task's own."""
+    return 7 * len(SCENE_PRESETS[TASK_SCENES[task]].objects) + TASK_EXTRA_STATE.get(task, 0)
+
+
 MAX_IMAGE_SIDE = 4096
 DEFAULT_CAMERAS = ("front", "wrist")
 DEFAULT_SIZE = (480, 640)
@@ -203,11 +219,11 @@ class SO101SimEnvConfig(EnvConfig):
                         f"it out"
                     )
             self.observation_height, self.observation_width = h, w
-        objects = len(SCENE_PRESETS[TASK_SCENES[str(self.task)]].objects)
-        if env_state is not None and env_state != (7 * objects,):
+        size = state_size(str(self.task))
+        if env_state is not None and env_state != (size,):
             raise SettingError(
                 f"{source} takes {OBS_ENV_STATE} of shape {env_state}; {self.task} gives "
-                f"({7 * objects},) (7 per object): it was trained on another task"
+                f"({size},) (7 per object, then the task's own): it was trained on another task"
             )
         wants = env_state is not None
         if "object_state" in self._given and self.object_state != wants:
@@ -227,8 +243,7 @@ class SO101SimEnvConfig(EnvConfig):
         }
         names = {ACTION: ACTION, "agent_pos": OBS_STATE}
         if self.object_state:
-            objects = len(SCENE_PRESETS[TASK_SCENES[str(self.task)]].objects)
-            state = PolicyFeature(type=FeatureType.ENV, shape=(7 * objects,))
+            state = PolicyFeature(type=FeatureType.ENV, shape=(state_size(str(self.task)),))
             features["environment_state"] = state
             names["environment_state"] = OBS_ENV_STATE
         shape = (int(self.observation_height or 0), int(self.observation_width or 0), 3)
@@ -310,11 +325,40 @@ class SO101SimCubeToBowlEnv(SO101SimEnvConfig):
     task: str | None = "CubeToBowl-v0"
 
 
+@EnvConfig.register_subclass("so101sim_reach")
+@dataclass
+class SO101SimReachEnv(SO101SimEnvConfig):
+    """Bring the tip to a target point (``so101sim/Reach-v0``, 4 s)."""
+
+    task: str | None = "Reach-v0"
+
+
+@EnvConfig.register_subclass("so101sim_lift_cylinder")
+@dataclass
+class SO101SimLiftCylinderEnv(SO101SimEnvConfig):
+    """Lift the cylinder (``so101sim/LiftCylinder-v0``, 8 s)."""
+
+    task: str | None = "LiftCylinder-v0"
+
+
+@EnvConfig.register_subclass("so101sim_lift_sphere")
+@dataclass
+class SO101SimLiftSphereEnv(SO101SimEnvConfig):
+    """Lift the ball (``so101sim/LiftSphere-v0``, 8 s)."""
+
+    task: str | None = "LiftSphere-v0"
+
+
 __all__ = [
     "ENV_MODULE",
     "NAMESPACE",
+    "TASK_EXTRA_STATE",
     "TASK_SCENES",
     "SO101SimCubeToBowlEnv",
     "SO101SimEnvConfig",
+    "SO101SimLiftCylinderEnv",
+    "SO101SimLiftSphereEnv",
     "SO101SimPickCubeEnv",
+    "SO101SimReachEnv",
+    "state_size",
 ]

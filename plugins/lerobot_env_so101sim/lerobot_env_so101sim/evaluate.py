@@ -7,8 +7,9 @@ plugin's environment, which takes its cameras, image size and state from the pol
 features (:meth:`~.configs.SO101SimEnvConfig.match_policy`). Episode ``k`` starts from seed
 ``seed + k`` (the same start poses, and with ``randomize`` the same scene, whatever the worker
 count). The report gives the success rate with its Wilson score interval (95 %), the simulated
-time to success (mean, median), and a video of each failed episode (up to ``max_videos``, the
-``front`` camera) under ``output``; ``eval.json`` there holds all of it.
+time to success (mean, median), and a video of each failed episode (up to ``max_videos``: the
+``front`` view, and beside it what the policy saw, its own cameras at their size scaled up)
+under ``output``; ``eval.json`` there holds all of it.
 """
 
 from __future__ import annotations
@@ -30,7 +31,13 @@ from so101sim.errors import OutputPathError, SettingError
 from so101sim.scenes import randomization
 from so101sim.validation import check_choice, check_count
 
-TASK_TYPES = {"pick_cube": "PickCube-v0", "cube_to_bowl": "CubeToBowl-v0"}
+TASK_TYPES = {
+    "pick_cube": "PickCube-v0",
+    "cube_to_bowl": "CubeToBowl-v0",
+    "reach": "Reach-v0",
+    "lift_cylinder": "LiftCylinder-v0",
+    "lift_sphere": "LiftSphere-v0",
+}
 """The tasks (``--task``) and their Gymnasium names (``--env.type=so101sim_<task>``)."""
 MAX_EPISODES = 100_000
 MAX_WORKERS = 256
@@ -194,6 +201,47 @@ def _setup(settings: EvalSettings) -> dict[str, Any]:
     return _loaded[key]
 
 
+class _SeenImages:
+    """The vector environment, passed through, keeping the camera images of its last
+    observation (what the policy is given): the failure videos show them."""
+
+    def __init__(self, vec: Any) -> None:
+        self._vec = vec
+        self.pixels: dict[str, np.ndarray] = {}
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._vec, name)
+
+    def _keep(self, obs: Any) -> None:
+        pixels = obs.get("pixels") if isinstance(obs, dict) else None
+        self.pixels = {k: np.asarray(v)[0] for k, v in pixels.items()} if pixels else {}
+
+    def reset(self, *args: Any, **kwargs: Any) -> Any:
+        out = self._vec.reset(*args, **kwargs)
+        self._keep(out[0])
+        return out
+
+    def step(self, *args: Any, **kwargs: Any) -> Any:
+        out = self._vec.step(*args, **kwargs)
+        self._keep(out[0])
+        return out
+
+
+def _scaled(img: np.ndarray, height: int) -> np.ndarray:
+    """``img`` scaled to ``height`` rows (nearest pixel: the policy's pixels stay visible)."""
+    h, w = img.shape[:2]
+    width = max(2, round(w * height / h) // 2 * 2)
+    return img[(np.arange(height) * h) // height][:, (np.arange(width) * w) // width]
+
+
+def side_by_side(front: np.ndarray, seen: dict[str, np.ndarray]) -> np.ndarray:
+    """The front view with the policy's camera images, scaled to its height, on its right."""
+    height = front.shape[0]
+    parts = [np.asarray(front, dtype=np.uint8)]
+    parts += [_scaled(np.asarray(img, dtype=np.uint8), height) for img in seen.values()]
+    return np.concatenate(parts, axis=1)
+
+
 def run_episode(settings: EvalSettings, index: int) -> EpisodeOutcome:
     """Episode ``index`` (seed ``settings.seed + index``), in this process."""
     from unittest import mock
@@ -205,15 +253,17 @@ def run_episode(settings: EvalSettings, index: int) -> EpisodeOutcome:
     frames: list[np.ndarray] = []
     drawn: list[Any] = []
 
+    seen = _SeenImages(s["vec"])
+
     def render(env: Any) -> None:
         if not frames:  # the first call follows the episode's reset: its scene's draws
             drawn.append(getattr(env.envs[0].unwrapped, "randomization", None))
-        frames.append(env.envs[0].render())
+        frames.append(side_by_side(env.envs[0].render(), seen.pixels))
 
     # one bar for the whole evaluation (ours): rollout()'s per-step bar is off, as LeRobot
     # turns it off under Slurm
     with mock.patch.object(lerobot_eval, "inside_slurm", lambda: True):
-        out = lerobot_eval.rollout(s["vec"], s["policy"], s["env_pre"], s["env_post"], s["pre"],
+        out = lerobot_eval.rollout(seen, s["policy"], s["env_pre"], s["env_post"], s["pre"],
                                    s["post"], seeds=[seed], render_callback=render)  # fmt: skip
     success = out["success"][0].numpy()
     done = out["done"][0].numpy()

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 from lerobot.cameras import Camera
 
-from so101sim.robot.cameras import SimCamera
+from so101sim.robot import SimCamera
 
 from .config_so101sim import SO101SimCameraConfig
 from .errors import DeviceNotConnectedError, SimCameraError, raises_lerobot_errors

@@ -21,9 +21,9 @@ from lerobot.cameras import CameraConfig
 from lerobot.robots import RobotConfig
 from lerobot.teleoperators import TeleoperatorConfig
 
+from so101sim import load_motion
 from so101sim.errors import RobotConfigError
 from so101sim.model import arm_units, load_model
-from so101sim.motion.file import load_motion
 from so101sim.robot import SO101SimFollowerConfig
 from so101sim.units import STARTING_POSE
 from so101sim.validation import check_choice, check_count, check_range
@@ -33,7 +33,7 @@ ROBOT_TYPE = "so101_sim"
 CAMERA_TYPE = "so101_sim"
 MOTION_TELEOP_TYPE = "so101_sim_motion"
 EXPERT_TELEOP_TYPE = "so101_sim_expert"
-EXPERT_TASKS = {"pick_cube": 8.0, "cube_to_bowl": 12.0}
+EXPERT_TASKS = {"pick_cube": 8.0, "cube_to_bowl": 12.0, "lift_cylinder": 8.0, "lift_sphere": 8.0}
 """The scripted experts' tasks (each also a ``--robot.scene`` preset) and their time limits
 (seconds, those of ``so101sim/PickCube-v0`` and ``so101sim/CubeToBowl-v0``)."""
 MAX_EPISODE_S = 3600.0

@@ -16,7 +16,11 @@ task's time limit is left out and counted (:attr:`DatasetReport.failed_seeds`).
 Worker processes (``workers``; or Ray tasks with ``use_ray``) simulate the episodes in
 parallel and hand their frames back; this process writes them, in seed order, through
 LeRobot's own writer (``LeRobotDataset.create``, ``add_frame``, ``save_episode``,
-``finalize``), so the dataset is the same for the same seeds whatever the worker count. The
+``finalize``; videos encoded as the frames arrive, on a thread: ``streaming_encoding``), so
+the dataset is the same for the same seeds whatever the worker count (:mod:`.episodes`). With
+``video=False`` the images are stored as PNG frames in the data files instead of AV1 videos:
+larger, and slower to train on with action chunks (LeRobot 0.6.1 reads a chunk's rows whole,
+decoding each row's images). The
 dataset is written to a temporary folder beside ``root`` and moved there when complete
 (nothing half-done is left). The settings (task, seeds, randomisation) are recorded in
 ``meta/so101sim.json``.
@@ -30,14 +34,10 @@ import os
 import shutil
 import tempfile
 import time
-from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, dataclass, field
-from multiprocessing import get_context
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 from so101sim.errors import OutputPathError, SettingError
 from so101sim.scenes import PRESET_CAMERAS, SCENE_PRESETS, randomization
@@ -45,14 +45,22 @@ from so101sim.units import JOINT_NAMES
 from so101sim.validation import check_choice, check_count, check_range
 
 from .config_so101sim import ROBOT_TYPE
+from .episodes import Episode, episodes, jsonable, simulate_episode
 
 log = logging.getLogger(__name__)
 
-TASK_TEXT = {"pick_cube": "Pick up the red cube.", "cube_to_bowl": "Put the red cube in the bowl."}
+TASK_TEXT = {
+    "pick_cube": "Pick up the red cube.",
+    "cube_to_bowl": "Put the red cube in the bowl.",
+    "lift_cylinder": "Pick up the orange cylinder.",
+    "lift_sphere": "Pick up the green ball.",
+}
 """The dataset's task text per task (the environments' ``task_description``)."""
 MAX_EPISODES = 100_000
 MAX_WORKERS = 256
 MAX_IMAGE_SIDE = 1024
+ENCODER_THREADS = 1
+"""Threads of the video encoder (streaming: it runs beside the workers on the same cores)."""
 MOTOR_NAMES = [f"{j}.pos" for j in JOINT_NAMES]
 OBJECT_FIELDS = ("x", "y", "z", "qw", "qx", "qy", "qz")
 
@@ -82,9 +90,7 @@ class DatasetSettings:
         Raises:
             SettingError: a value out of range (the message says what was expected).
         """
-        from so101sim.envs.run import TASKS
-
-        check_choice(self.task, "task", TASKS)
+        check_choice(self.task, "task", TASK_TEXT)  # the tasks a follower's expert records
         check_count(self.episodes, "episodes", minimum=1, maximum=MAX_EPISODES)
         check_count(self.seed, "seed", maximum=2**62)
         check_count(self.fps, "fps", minimum=1, maximum=500, unit=" Hz")
@@ -101,22 +107,6 @@ class DatasetSettings:
         if not self.cameras and not self.environment_state:
             log.info("a dataset with neither cameras nor environment_state: ACT refuses it")
         return self
-
-
-@dataclass(frozen=True)
-class Episode:
-    """One simulated episode as a worker hands it back."""
-
-    seed: int
-    success: bool
-    success_frame: int | None
-    states: np.ndarray  # (T, 6) float32
-    actions: np.ndarray  # (T, 6) float32
-    environment_state: np.ndarray | None = None  # (T, 7 * objects) float32
-    images: dict[str, np.ndarray] = field(default_factory=dict)  # camera -> (T, h, w, 3)
-    randomization: dict[str, Any] = field(default_factory=dict)
-    sim_seconds: float = 0.0
-    wall_seconds: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -170,117 +160,6 @@ def _randomize_options(preset: str) -> dict[str, Any]:
     return {} if preset == "none" else {"randomize": preset}
 
 
-def _simulate(settings: DatasetSettings, seed: int) -> tuple[Any, float]:
-    """In a worker: one episode (so101sim's, no LeRobot import) and its wall time."""
-    from so101sim.envs.run import expert_frames
-
-    start = time.perf_counter()
-    frames = expert_frames(
-        settings.task,
-        seed,
-        fps=settings.fps,
-        cameras=tuple(settings.cameras),
-        image_size=tuple(settings.image_size),
-        randomize=settings.randomize,
-        after_success_s=settings.after_success_s,
-    )
-    return frames, time.perf_counter() - start
-
-
-def simulate_episode(settings: DatasetSettings, seed: int) -> Episode:
-    """One episode of the task's expert from ``seed``."""
-    return _episode(settings, *_simulate(settings, seed))
-
-
-def _episode(settings: DatasetSettings, frames: Any, wall: float) -> Episode:
-    return Episode(
-        seed=frames.seed,
-        success=frames.success,
-        success_frame=frames.success_frame,
-        states=frames.states,
-        actions=frames.actions,
-        environment_state=frames.environment_state if settings.environment_state else None,
-        images=frames.images,
-        randomization=_jsonable(frames.randomization),
-        sim_seconds=len(frames.actions) / settings.fps,
-        wall_seconds=wall,
-    )
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
-def _frames_kwargs(settings: DatasetSettings) -> dict[str, Any]:
-    return {
-        "fps": settings.fps,
-        "cameras": tuple(settings.cameras),
-        "image_size": tuple(settings.image_size),
-        "randomize": settings.randomize,
-        "after_success_s": settings.after_success_s,
-    }
-
-
-def _episodes(settings: DatasetSettings, seeds: list[int]) -> Iterator[Episode]:
-    """The episodes of ``seeds``, in that order, simulated by ``settings.workers`` workers.
-    The workers run so101sim's :func:`~so101sim.envs.run.expert_frames` (plain arguments, so
-    they import nothing of LeRobot or of this plugin); this process turns each into an
-    :class:`Episode`."""
-    from so101sim.envs.run import expert_frames
-
-    kwargs = _frames_kwargs(settings)
-    if settings.use_ray:
-        try:
-            import ray
-        except ImportError as exc:
-            raise SettingError(
-                "--ray needs Ray in this Python; expected `pip install ray` (or leave --ray out)"
-            ) from exc
-        started = not ray.is_initialized()
-        if started:
-            ray.init(num_cpus=settings.workers, include_dashboard=False, log_to_driver=False)
-        try:
-            remote = ray.remote(num_cpus=1)(expert_frames)
-            refs = [remote.remote(settings.task, s, **kwargs) for s in seeds]
-            for ref in refs:
-                start = time.perf_counter()
-                yield _episode(settings, ray.get(ref), time.perf_counter() - start)
-        finally:
-            if started:
-                ray.shutdown()
-        return
-    if settings.workers == 1:
-        for s in seeds:
-            yield simulate_episode(settings, s)
-        return
-    ahead = 2 * settings.workers  # episodes in flight: bounds the frames held in memory
-    ctx = get_context("spawn")  # MuJoCo's GL contexts and torch do not survive a fork
-    with ProcessPoolExecutor(settings.workers, mp_context=ctx) as pool:
-        pending: list[Any] = []
-        todo = iter(seeds)
-        try:
-            while True:
-                for s in todo:
-                    pending.append(pool.submit(expert_frames, settings.task, s, **kwargs))
-                    if len(pending) >= ahead:
-                        break
-                if not pending:
-                    return
-                start = time.perf_counter()
-                yield _episode(settings, pending.pop(0).result(), time.perf_counter() - start)
-        finally:
-            for fut in pending:
-                fut.cancel()
-
-
 def generate_dataset(
     settings: DatasetSettings, progress: Callable[[Episode], None] | None = None
 ) -> DatasetReport:
@@ -323,6 +202,10 @@ def generate_dataset(
             features=dataset_features(settings),
             use_videos=settings.video,
             image_writer_threads=0,
+            # videos are encoded on a thread as frames arrive, not at each save_episode: the
+            # writer keeps taking the workers' episodes while the encoder works
+            streaming_encoding=settings.video and bool(settings.cameras),
+            encoder_threads=ENCODER_THREADS,
         )
         text = TASK_TEXT[settings.task]
         next_seed = settings.seed
@@ -338,7 +221,7 @@ def generate_dataset(
                 )
             seeds = list(range(next_seed, min(next_seed + want, limit)))
             next_seed = seeds[-1] + 1
-            for ep in _episodes(settings, seeds):
+            for ep in episodes(settings, seeds):
                 sim_seconds += ep.sim_seconds
                 if progress is not None:
                     progress(ep)
@@ -369,7 +252,7 @@ def generate_dataset(
             "generator": "so101sim dataset",
             "task": settings.task,
             "servo_model": servo_model(),  # the environments' default arm profile
-            "settings": _jsonable(asdict(settings)),
+            "settings": jsonable(asdict(settings)),
             "episode_seeds": kept,
             "failed_seeds": failed,
             "randomize": settings.randomize,

@@ -45,12 +45,9 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from so101sim.envs import expert_for, sim_task
-from so101sim.envs.expert import ScriptedExpert
-from so101sim.envs.scene_state import SimTask
+from so101sim.envs import ScriptedExpert, SimTask, expert_for, sim_task
 from so101sim.errors import So101SimError
-from so101sim.robot.helpers import MOTOR_KEYS
-from so101sim.robot.scene import RobotScene, find_follower, robot_scene, when_connected
+from so101sim.robot import MOTOR_KEYS, RobotScene, find_follower, robot_scene, when_connected
 
 from .config_so101sim import EXPERT_TELEOP_TYPE, SO101SimExpertConfig
 from .errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, lerobot_errors

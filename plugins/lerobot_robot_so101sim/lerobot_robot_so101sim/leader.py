@@ -8,7 +8,7 @@ from typing import Any
 
 from lerobot.teleoperators import Teleoperator
 
-from so101sim.robot.helpers import MOTOR_KEYS
+from so101sim.robot import MOTOR_KEYS
 
 from .errors import DeviceNotConnectedError
 

@@ -14,10 +14,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from so101sim import lab_motion_path, load_motion
 from so101sim.model import arm_units, load_model
 from so101sim.motion import Move, Segment, commanded_path
-from so101sim.motion.file import lab_motion_path, load_motion
-from so101sim.robot.helpers import MOTOR_KEYS
+from so101sim.robot import MOTOR_KEYS
 from so101sim.units import JOINT_NAMES
 
 from .config_so101sim import MOTION_TELEOP_TYPE, SO101SimMotionConfig

@@ -33,8 +33,7 @@ from typing import Any
 
 from lerobot.robots import Robot
 
-from so101sim.robot import SO101SimFollower
-from so101sim.robot.scene import robot_scene, scene_resets
+from so101sim.robot import SO101SimFollower, robot_scene, scene_resets
 
 from .camera import SO101SimCamera
 from .config_so101sim import ROBOT_TYPE, SO101SimConfig

@@ -111,3 +111,71 @@ def test_so101sim_dataset_trains_with_lerobot_train_and_evaluates(tmp_path):
         assert ep["randomization"] is None  # no --randomize: nothing drawn
         if not ep["success"] and ep.get("video"):  # a failure's video: its episode, no more
             assert iio.improps(ep["video"], plugin="pyav").shape[0] == ep["steps"]
+
+
+@pytest.mark.cli
+def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take(tmp_path):
+    """The image path: 3 episodes with front and wrist cameras (the real follower's image
+    keys and state names), 3 steps of a tiny image ACT with `lerobot-train`, 1 episode of
+    `so101sim eval` (the failure video: the front view beside the policy's two cameras), and
+    `so101sim policy-check` on the trained policy against a real follower's configs."""
+    root = tmp_path / "ds"
+    run(
+        [tool("so101sim"), "dataset", "pick_cube", "--episodes", "3", "-o", str(root),
+         "--cameras", "front,wrist", "--image-size", "64x48", "--workers", "2",
+         "--no-progress"],
+        tmp_path / "dataset.log",
+    )  # fmt: skip
+    ds = LeRobotDataset(REPO_ID, root=root)
+    assert ds.features["observation.state"]["names"] == KEYS
+    assert ds.features["action"]["names"] == KEYS
+    for cam in ("front", "wrist"):
+        assert ds.features[f"observation.images.{cam}"]["shape"] == (48, 64, 3)
+    assert "observation.environment_state" not in ds.features
+    frame = ds[0]
+    assert tuple(frame["observation.images.wrist"].shape) == (3, 48, 64)
+    train = tmp_path / "train"
+    run(
+        [tool("lerobot-train"), f"--dataset.repo_id={REPO_ID}", f"--dataset.root={root}",
+         "--policy.type=act", "--policy.dim_model=32", "--policy.n_heads=2",
+         "--policy.dim_feedforward=64", "--policy.n_encoder_layers=1",
+         "--policy.n_decoder_layers=1", "--policy.use_vae=false", "--policy.chunk_size=10",
+         "--policy.n_action_steps=10", "--policy.pretrained_backbone_weights=null",
+         "--policy.device=cpu", "--policy.push_to_hub=false", "--steps=3", "--batch_size=2",
+         "--num_workers=0", "--save_freq=3", "--log_freq=1", f"--output_dir={train}",
+         "--wandb.enable=false"],
+        tmp_path / "train.log",
+    )  # fmt: skip
+    policy = train / "checkpoints" / "last" / "pretrained_model"
+    config = json.loads((policy / "config.json").read_text())
+    assert sorted(config["input_features"]) == [
+        "observation.images.front", "observation.images.wrist", "observation.state"
+    ]  # fmt: skip
+    evaluation = tmp_path / "eval"
+    run(
+        [tool("so101sim"), "eval", str(policy), "--episodes", "1", "--workers", "1",
+         "--episode-length", "8", "-o", str(evaluation)],
+        tmp_path / "eval.log",
+    )  # fmt: skip
+    report = json.loads((evaluation / "eval.json").read_text())
+    assert report["episodes"] == 1
+    import imageio.v3 as iio
+
+    for ep in report["per_episode"]:
+        if not ep["success"]:  # the front view (640x480) and each camera scaled to 480 rows
+            assert ep["video"], "a failed episode has its video"
+            props = iio.improps(ep["video"], plugin="pyav")
+            assert props.shape[0] == ep["steps"] and props.shape[1:3] == (480, 640 * 3)
+    from so101sim.cli.main import main
+
+    def robot(name: str, cameras: dict) -> str:
+        path = tmp_path / name
+        arm = {"type": "so101_follower", "port": "/dev/ttyACM0", "use_degrees": True}
+        path.write_text(json.dumps({"robot": {**arm, "cameras": cameras}}))
+        return str(path)
+
+    cam = {"type": "opencv", "index_or_path": 0, "width": 64, "height": 48, "fps": 30}
+    good = robot("good.json", {"front": cam, "wrist": {**cam, "index_or_path": 1}})
+    assert main(["policy-check", str(policy), "--robot-config", good]) == 0
+    bad = robot("bad.json", {"front": {**cam, "width": 640, "height": 480}})
+    assert main(["policy-check", str(policy), "--robot-config", bad]) == 1

@@ -7,6 +7,7 @@ from typing import Any
 
 from ..errors import SettingError
 from ..validation import check_duration
+from .output import say
 from .tools import output_hint
 
 
@@ -27,7 +28,7 @@ def cmd_view(args: argparse.Namespace) -> int:
 def cmd_model_path(args: argparse.Namespace) -> int:
     from ..model.load import model_dir  # imported here: it imports MuJoCo
 
-    print(model_dir())
+    say(model_dir())
     return 0
 
 
@@ -46,10 +47,10 @@ def cmd_pose(args: argparse.Namespace) -> int:
 
     check_display()  # without a display its error is all the user sees
     m, d = pose_scene(args.model)
-    print(INSTRUCTIONS, flush=True)
+    say(INSTRUCTIONS, flush=True)
 
     def show(change: Any) -> None:
-        print(format_pose(change, with_time=True), flush=True)
+        say(format_pose(change, with_time=True), flush=True)
 
     find_poses(m, d, show)  # MuJoCo's viewer until its window is closed
     return 0
@@ -58,7 +59,8 @@ def cmd_pose(args: argparse.Namespace) -> int:
 def cmd_check(args: argparse.Namespace) -> int:
     import json
 
-    from ..motion.file import lab_motion_path  # imported here: they import MuJoCo
+    from ..model.build import servo_model  # imported here: they import MuJoCo
+    from ..motion.file import lab_motion_path
     from ..preflight.check import Thresholds, check_motion_file, format_report
 
     names = ("max_effort", "max_saturation", "max_tracking_error", "limit_margin")
@@ -75,19 +77,23 @@ def cmd_check(args: argparse.Namespace) -> int:
         report = check_motion_file(
             motion, model=args.model, thresholds=thresholds, strict=args.strict, arm=args.arm
         )
-    # the report names the motion it judged: the file, or the lab motion
+    # the report names the motion it judged (the file, or the lab motion) and the servo
+    # model it ran: the efforts and tracking errors are that model's
+    servos = servo_model(arm=args.arm)
     if args.json:
-        print(json.dumps({"motion": str(motion), **report.to_dict()}, indent=2))
+        named = {"motion": str(motion), "servo_model": servos}
+        say(json.dumps({**named, **report.to_dict()}, indent=2))
     else:
         name = f"the lab motion ({motion})" if args.motion is None else str(motion)
-        print(f"checked {name}\n{format_report(report)}")
+        say(f"checked {name}\nservo model: {servos}\n{format_report(report)}")
     return 0 if report.passed else 1
 
 
 def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> int:
     import json
 
-    from ..preflight import robust as pv  # imports MuJoCo
+    from ..model.build import servo_model  # imported here: they import MuJoCo
+    from ..preflight import robust as pv
 
     settings = {"model": args.model, "thresholds": thresholds, "strict": args.strict}
     settings["arm"] = args.arm
@@ -104,10 +110,15 @@ def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> i
         job = pv.make_job(motion, count=args.variants, seed=seed, **settings)
         report = pv.summarize(job, run_on_ray(job, args.ray))
     if args.plot is not None:
-        pv.plot_variants(report, args.plot, force=True)
-    print(json.dumps(report.to_dict(), indent=2) if args.json else pv.format_variants(report))
+        pv.plot_variants(report, args.plot, force=args.force)  # checked above; claimed now
+    servos = servo_model(arm=args.arm)  # the variants perturb this servo model
+    if args.json:
+        say(json.dumps({"servo_model": servos, **report.to_dict()}, indent=2))
+    else:
+        first, _, rest = pv.format_variants(report).partition("\n")
+        say(f"{first}\nservo model: {servos} (perturbed per variant)\n{rest}")
     if args.plot is not None and not args.json:
-        print(f"wrote {args.plot}")
+        say(f"wrote {args.plot}")
     return 0 if report.passed == len(report.outcomes) else 1
 
 
@@ -123,10 +134,10 @@ def cmd_teleop(args: argparse.Namespace) -> int:
     fps = check_fps(args.fps)
     duration = check_duration(args.duration) if args.duration is not None else None
     calibration = teleop.find_calibration(args.calibration, args.id)
-    print(calibration.note)
+    say(calibration.note)
     viewer = choose_viewer(args.headless)
     if viewer.note:
-        print(viewer.note)
+        say(viewer.note)
     config = robot.SO101SimFollowerConfig(
         id="teleop", model=args.model, viewer=viewer.use, arm=args.arm
     )
@@ -134,17 +145,17 @@ def cmd_teleop(args: argparse.Namespace) -> int:
     bus = teleop.FeetechLeaderBus(args.port, calibration=calibration.motors)
     try:
         with follower:
-            print(f"mirroring the leader on {args.port} at {args.fps:g} Hz; Ctrl-C to stop")
+            say(f"mirroring the leader on {args.port} at {args.fps:g} Hz; Ctrl-C to stop")
             stop = (lambda: not follower.viewer_open) if viewer.use else None
             result = teleop.teleoperate(
                 follower, bus, calibration.motors, fps=fps, duration=duration, should_stop=stop
             )
     except KeyboardInterrupt:
-        print("stopped")
+        say("stopped")
         return 0
     finally:
         bus.close()
-    print(
+    say(
         f"{result.ticks} ticks in {result.duration:.2f} s "
         f"({result.late_ticks} slower than {args.fps:g} Hz)"
     )

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from .output import say
 from .studio import add_web_options
 from .tools import add_video_options
 
@@ -20,7 +21,7 @@ def add_demo_command(sub: SubParsers, *, arm: argparse.ArgumentParser) -> None:
     p = sub.add_parser(
         "demo",
         parents=[arm],
-        help="run a task's scripted expert once (pick_cube, cube_to_bowl), optionally on video",
+        help="run a task's scripted expert once (see so101sim.envs.TASKS) or record it",
         description=(
             "Runs the scripted expert of TASK for one episode from the start poses drawn from "
             "--seed: in MuJoCo's viewer when there is a display (unless --headless), and with "
@@ -29,7 +30,9 @@ def add_demo_command(sub: SubParsers, *, arm: argparse.ArgumentParser) -> None:
             "status 0 on success, 1 when the task failed, 2 on a bad setting."
         ),
     )
-    p.add_argument("task", help="the task: pick_cube or cube_to_bowl")
+    p.add_argument(
+        "task", help="the task: pick_cube, cube_to_bowl, reach, lift_cylinder or lift_sphere"
+    )
     p.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
     p.add_argument(
         "--headless", action="store_true", help="run without the viewer, even with a display"
@@ -55,11 +58,15 @@ def format_figures(figures: dict[str, float]) -> str:
     parts = []
     if "cube_rise_m" in figures:
         parts.append(f"cube lifted {figures['cube_rise_m'] * 1000:.1f} mm")
+    if "object_rise_m" in figures:
+        parts.append(f"object lifted {figures['object_rise_m'] * 1000:.1f} mm")
     if "cube_to_bowl_m" in figures:
         where = "in the bowl" if figures.get("in_bowl") else "not in the bowl"
         parts.append(
             f"cube {figures['cube_to_bowl_m'] * 1000:.1f} mm from the bowl's centre ({where})"
         )
+    if "goal_distance_m" in figures:
+        parts.append(f"tip {figures['goal_distance_m'] * 1000:.1f} mm from the target")
     if "grasped" in figures:
         parts.append("held in the gripper" if figures["grasped"] else "not held")
     return ", ".join(parts)
@@ -81,7 +88,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     env_id(args.task)  # an unknown task: SettingError listing the tasks (exit status 2)
     viewer = choose_viewer(args.headless)
     if viewer.note:
-        print(viewer.note)
+        say(viewer.note)
     fields = ("width", "height", "fps", "camera", "quality", "caption")
     settings = VideoSettings(**{name: getattr(args, name) for name in fields}).validated()
     result = run_expert(
@@ -98,12 +105,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
     else:
         status = "FAILED" if result.completed else "stopped (viewer closed)"
     tries = "grasp" if result.attempts == 1 else "grasps"
-    print(
+    grasps = "" if "goal_distance_m" in result.figures else f", {result.attempts} {tries} tried"
+    say(
         f"{args.task}, seed {result.seed}: {status} "
-        f"({result.sim_time:.2f} s of simulated time in all, {result.steps} steps, "
-        f"{result.attempts} {tries} tried)"
+        f"({result.sim_time:.2f} s of simulated time in all, {result.steps} steps{grasps})"
     )
-    print(format_figures(result.figures))
+    say(format_figures(result.figures))
     if result.video is not None:
-        print(f"wrote the video to {result.video} ({result.video_frames} frames)")
+        say(f"wrote the video to {result.video} ({result.video_frames} frames)")
     return 0 if result.success or not result.completed else 1

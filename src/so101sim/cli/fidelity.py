@@ -10,7 +10,7 @@ import argparse
 import json
 import sys
 
-from .output import add_arm_option
+from .output import add_arm_option, say
 
 SubParsers = argparse._SubParsersAction
 
@@ -51,14 +51,27 @@ def add_parsers(sub: SubParsers) -> None:
     _common(p)
     p.add_argument(
         "--holdout",
-        type=int,
-        help="episodes (the last ones) kept out of the fit (default 1 if there are 2 or more)",
+        metavar="EPISODES",
+        help="episodes kept out of the fit and predicted, e.g. 2-3 (default: the last one, if "
+        "there are 2 or more); never frames of a fitted episode. Read even when --episodes "
+        "leaves them out: --episodes 0-1 --holdout 2-3 fits on 0-1 and predicts 2-3",
     )
     p.add_argument(
         "--iterations", type=int, default=30, help="solver evaluations at most (default 30)"
     )
+    p.add_argument(
+        "--calibration-only",
+        action="store_true",
+        help="keep --arm's servos and delay; fit only each body joint's calibration (scale and "
+        "offset) of a range-mode recording without LeRobot's calibration JSON",
+    )
     p.add_argument("--threads", type=int, help="threads for the rollouts (default: the cores)")
-    p.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="overwrite an existing output file; write a profile that predicts the held-out "
+        "episodes worse than the default profile",
+    )
     p.set_defaults(func=cmd_fit)
 
 
@@ -68,6 +81,11 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--calibration",
         help="LeRobot calibration JSON of the follower, for a range-mode (-100..100) dataset",
+    )
+    p.add_argument(
+        "--robot-id",
+        help="the follower's LeRobot id (--robot.id): its calibration JSON is read from "
+        "LeRobot's folder ($HF_LEROBOT_CALIBRATION/robots/so_follower/<id>.json)",
     )
     p.add_argument(
         "--units",
@@ -80,7 +98,7 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 
 def _warn(text: str) -> None:
-    print(f"so101sim: warning: {text}", file=sys.stderr)
+    say(f"so101sim: warning: {text}", file=sys.stderr)
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
@@ -99,30 +117,50 @@ def cmd_compare(args: argparse.Namespace) -> int:
         model=args.model,
         keep_traces=args.plot is not None,
         units=args.units,
+        robot_id=args.robot_id,
     )
     for w in result.warnings:
         _warn(w)
     if args.plot is not None:
-        plot_overlay(result, args.plot, force=True)
+        plot_overlay(result, args.plot, force=args.force)  # checked above; claimed now
     if args.json:
-        print(json.dumps(result.to_json()))
+        say(json.dumps(result.to_json()))
         return 0
-    print(
+    say(
         f"{result.frames} frames at {result.fps:g} fps, episodes {_eps(result.episodes)}, "
         f"arm profile {result.profile}"
     )
-    print(f"{'joint':<15}{'sim mae':>9}{'rms':>8}{'max':>8}{'lag s':>8}{'command mae':>13}")
+    say(
+        f"{'joint':<15}{'sim mae':>9}{'rms':>8}{'max':>8}{'lag s':>8}{'command mae':>13}"
+        f"{'holds':>8}{'moves':>8}"
+    )
     for name, e in result.joints.items():
         base = result.command_baseline[name]
-        print(f"{name:<15}{e.mae:>9.2f}{e.rms:>8.2f}{e.max:>8.2f}{e.lag_s:>8.3f}{base:>13.2f}")
+        split = f"{_cell(result.holds.get(name))}{_cell(result.moves.get(name))}"
+        say(f"{name:<15}{e.mae:>9.2f}{e.rms:>8.2f}{e.max:>8.2f}{e.lag_s:>8.3f}{base:>13.2f}{split}")
     better = sum(e.mae < result.command_baseline[n] for n, e in result.joints.items())
-    print(
+    say(
         f"(degrees; gripper 0-100) the sim is closer to the real arm than the commands on "
         f"{better} of {len(result.joints)} joints"
     )
+    body = [n for n in result.joints if n != "gripper"]
+    if body:  # the figure docs/fidelity.md quotes: the body joints' mean absolute error
+        sim_body = sum(result.joints[n].mae for n in body) / len(body)
+        cmd_body = sum(result.command_baseline[n] for n in body) / len(body)
+        say(f"body joints: sim mae {sim_body:.2f} deg, command mae {cmd_body:.2f} deg")
+    say("holds: sim mae while the joint's command holds still; moves: while it moves")
+    for w in result.worst:
+        say(
+            f"worst window: episode {w.episode}, {w.t0:.2f}-{w.t1:.2f} s, body mae "
+            f"{w.mae:.2f} deg, worst joint {w.joint}"
+        )
     if args.plot is not None:
-        print(f"wrote {args.plot}")
+        say(f"wrote {args.plot} (the worst windows shaded)")
     return 0
+
+
+def _cell(v: float | None) -> str:
+    return f"{v:>8.2f}" if v is not None and v == v else f"{'-':>8}"
 
 
 def _eps(eps: list[int]) -> str:
@@ -131,45 +169,97 @@ def _eps(eps: list[int]) -> str:
 
 def cmd_fit(args: argparse.Namespace) -> int:
     from ..fidelity.fit import fit
+    from ..fidelity.fitparams import body_mean
     from ..fidelity.logs import parse_episodes
     from ..model.arm import profile_toml
     from ..recording.paths import check_output_path, write_atomically
 
     out = check_output_path(args.output, force=args.force, what="profile", suffixes=(".toml",))
     episodes = parse_episodes(args.episodes) if args.episodes is not None else None
+    holdout = parse_episodes(args.holdout) if args.holdout is not None else None
+    if episodes is not None and holdout is not None:
+        # `--episodes 0-1 --holdout 2-3`: fit on 0-1, predict 2-3 (the held-out ones are read too)
+        episodes = sorted(set(episodes) | set(holdout))
     result = fit(
         args.logs,
         arm=args.arm,
         episodes=episodes,
         calibration=args.calibration,
         units=args.units,
-        holdout=args.holdout,
+        holdout=holdout,
+        robot_id=args.robot_id,
+        **_only_calibration(args.calibration_only),
         max_evaluations=args.iterations,
         threads=args.threads,
         model=args.model,
     )
-    print(f"fitted on episodes {_eps(result.fit_episodes)}; {result.evaluations} rollouts")
-    print(f"{'joint':<15}" + "".join(f"{k:>22}" for k in _names(result.values)))
+    say(f"fitted on episodes {_eps(result.fit_episodes)}; {result.evaluations} rollouts")
+    say(f"{'joint':<15}" + "".join(f"{k:>22}" for k in _names(result.values)))
     for joint, vals in result.values.items():
         cells = "".join(
             f"{_pm(vals[k], result.stderr[joint][k]):>22}" if k in vals else f"{'':>22}"
             for k in _names(result.values)
         )
-        print(f"{'all (shared)' if joint == '*' else joint:<15}{cells}")
+        say(f"{'all (shared)' if joint == '*' else joint:<15}{cells}")
     _errors("fitted episodes", result.start_fit_error, result.fit_error)
+    if result.gripper_blocked_frames:
+        _warn(
+            f"the real gripper is blocked (stalled on an object) in "
+            f"{result.gripper_blocked_frames} frames: left out of the gripper's error"
+        )
     if result.heldout_error is not None and result.start_heldout_error is not None:
-        print(f"held-out episodes {_eps(result.heldout_episodes)}:")
-        _errors("held-out episodes", result.start_heldout_error, result.heldout_error)
+        _heldout_table(result)
     else:
         _warn("no episode held out (one episode): the error on unseen motion is not measured")
+    if result.worse_than_default and not args.force:
+        say(
+            f"so101sim: error: REFUSED: the fitted profile predicts the held-out episodes "
+            f"{_eps(result.heldout_episodes)} WORSE than the default profile "
+            f"({body_mean(result.heldout_error or {}):.2f} deg against "
+            f"{body_mean(result.default_heldout_error or {}):.2f}, body joints); {out} was NOT "
+            "written (more or more varied episodes may help; --force writes it anyway)",
+            file=sys.stderr,
+        )
+        return 1
+    if result.worse_than_default:
+        _warn("the fitted profile is worse than the default on the held-out episodes (--force)")
     comment = (
         f"so101sim fit of {', '.join(map(str, args.logs))}\n"
         f"episodes fitted {_eps(result.fit_episodes)}, held out {_eps(result.heldout_episodes)}"
     )
     text = profile_toml(result.profile, comment=comment)
-    write_atomically(out, lambda p: p.write_text(text, encoding="utf-8"), "profile")
-    print(f"wrote {out} (use it with --arm {out})")
+    write = lambda p: p.write_text(text, encoding="utf-8")  # noqa: E731
+    write_atomically(out, write, "profile", force=args.force)
+    say(f"wrote {out} (use it with --arm {out})")
     return 0
+
+
+def _only_calibration(only: bool) -> dict:
+    """fit()'s settings for --calibration-only: no servo field, no delay, the calibration."""
+    if not only:
+        return {}
+    body = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
+    return {"names": (), "joints": body, "fit_delay": False}  # calibration: when not given
+
+
+def _heldout_table(result) -> None:
+    from ..fidelity.fitparams import body_mean  # lazy: MuJoCo only when the command runs
+
+    cols = {
+        "fitted": result.heldout_error,
+        "start": result.start_heldout_error,
+        "default": result.default_heldout_error,
+        "commands": result.command_heldout_error,
+    }
+    cols = {k: v for k, v in cols.items() if v is not None}
+    say(
+        f"held-out episodes {_eps(result.heldout_episodes)}: mean |sim - real| (deg; gripper "
+        "0-100); commands: the arm reaching every command"
+    )
+    say(f"    {'joint':<15}" + "".join(f"{k:>10}" for k in cols))
+    for name in result.heldout_error:
+        say(f"    {name:<15}" + "".join(f"{v[name]:>10.2f}" for v in cols.values()))
+    say(f"    {'body joints':<15}" + "".join(f"{body_mean(v):>10.2f}" for v in cols.values()))
 
 
 def _names(values: dict[str, dict[str, float]]) -> list[str]:
@@ -184,6 +274,6 @@ def _pm(v: float, e: float) -> str:
 
 
 def _errors(what: str, before: dict[str, float], after: dict[str, float]) -> None:
-    print(f"  mean |sim - real| on the {what} (deg; gripper 0-100), start -> fitted:")
+    say(f"  mean |sim - real| on the {what} (deg; gripper 0-100), start -> fitted:")
     for name in after:
-        print(f"    {name:<15}{before[name]:>8.2f} -> {after[name]:.2f}")
+        say(f"    {name:<15}{before[name]:>8.2f} -> {after[name]:.2f}")

@@ -15,6 +15,7 @@ import sys
 from typing import Any
 
 from ..errors import MissingDependencyError
+from .output import say
 
 SubParsers = Any  # argparse's private _SubParsersAction
 
@@ -41,10 +42,13 @@ def plugin_module(command: str) -> Any:
 
 
 def _size(text: str) -> tuple[int, int]:
+    """``WIDTHxHEIGHT`` (as cameras are sized: 640x480) as (height, width)."""
     try:
-        h, w = (int(v) for v in text.lower().split("x"))
+        w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected HEIGHTxWIDTH, e.g. 96x96") from None
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected WIDTHxHEIGHT in pixels, e.g. 160x120"
+        ) from None
     return h, w
 
 
@@ -64,14 +68,15 @@ def add_learning_commands(sub: SubParsers) -> None:
         "dataset",
         help="write a LeRobotDataset of a task's scripted expert (needs the LeRobot plugin)",
         description=(
-            "Simulates N episodes of TASK's scripted expert (pick_cube, cube_to_bowl), each from "
+            "Simulates N episodes of TASK's scripted expert (pick_cube, cube_to_bowl, "
+            "lift_cylinder, lift_sphere), each from "
             "its own seed, faster than real time on worker processes, and writes them with "
             "LeRobot's dataset writer: the features lerobot-record writes on "
             "--robot.type=so101_sim. Failed takes are left out and counted (replaced by the "
             "next seeds). Needs lerobot_robot_so101sim installed."
         ),
     )
-    p.add_argument("task", help="pick_cube or cube_to_bowl")
+    p.add_argument("task", help="pick_cube, cube_to_bowl, lift_cylinder or lift_sphere")
     p.add_argument("--episodes", type=int, required=True, help="episodes to write")
     p.add_argument("-o", "--output", required=True, help="the dataset's folder (must not exist)")
     p.add_argument("--repo-id", default="local/so101sim", help="the dataset's repo_id")
@@ -80,11 +85,23 @@ def add_learning_commands(sub: SubParsers) -> None:
     p.add_argument(
         "--cameras", type=_cameras, default=(), help="comma-separated: front,wrist (none)"
     )
-    p.add_argument("--image-size", type=_size, default=(96, 96), help="HxW (default 96x96)")
+    p.add_argument(
+        "--image-size",
+        type=_size,
+        default=(96, 96),
+        help="WIDTHxHEIGHT of the recorded images (default 96x96; a size your camera delivers, "
+        "e.g. 160x120 for a 4:3 camera)",
+    )
     p.add_argument(
         "--environment-state",
         action="store_true",
         help="also write observation.environment_state (the objects' poses)",
+    )
+    p.add_argument(
+        "--no-video",
+        action="store_true",
+        help="store the images as PNG frames in the data files, not as AV1 videos (larger, and "
+        "slower to train ACT on: LeRobot decodes every row of an action chunk's images)",
     )
     p.add_argument("--randomize", default="none", help=RANDOMIZE_HELP)
     p.add_argument(
@@ -102,12 +119,14 @@ def add_learning_commands(sub: SubParsers) -> None:
             "Runs N episodes of the policy saved at POLICY_PATH (lerobot-train's "
             ".../pretrained_model) on TASK in worker processes, the environment matching the "
             "policy's inputs, episode k from seed --seed + k; prints the success rate with its "
-            "95 %% (Wilson) interval and the time to success, writes eval.json and a video of "
+            "95 % (Wilson) interval and the time to success, writes eval.json and a video of "
             "each failure under --output. Needs lerobot_env_so101sim installed."
         ),
     )
     p.add_argument("policy", metavar="POLICY_PATH", help="the policy's folder (config.json)")
-    p.add_argument("--task", default="pick_cube", help="pick_cube (default) or cube_to_bowl")
+    p.add_argument(
+        "--task", default="pick_cube", help="a task of so101sim.envs.TASKS (default pick_cube)"
+    )
     p.add_argument("--episodes", type=int, default=10, help="episodes (default 10)")
     p.add_argument("--seed", type=int, default=1000, help="first episode's seed (1000)")
     p.add_argument("--workers", type=int, help="worker processes (default: every core)")
@@ -119,6 +138,25 @@ def add_learning_commands(sub: SubParsers) -> None:
     p.add_argument("--device", default="cpu", help="torch device (cpu)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_eval)
+
+    p = sub.add_parser(
+        "policy-check",
+        help="will a trained policy run on a real robot's LeRobot config? (one line per mismatch)",
+        description=(
+            "Reads the inputs of the policy saved at POLICY_PATH (lerobot-train's "
+            ".../pretrained_model: config.json, train_config.json and, when it is here, the "
+            "training dataset's meta) and a robot config (the JSON or YAML that lerobot-record "
+            "--config_path takes, or its robot section alone) and prints one line per "
+            "mismatch: a camera the policy reads that the robot lacks, a resolution, the "
+            "state's size or names, degrees against range mode, a frame rate. Exit status 0: "
+            "none; 1: mismatches; 2: a file could not be read. Needs no LeRobot."
+        ),
+    )
+    p.add_argument("policy", metavar="POLICY_PATH", help="the policy's folder (config.json)")
+    p.add_argument(
+        "--robot-config", required=True, metavar="FILE", help="the robot's config (JSON/YAML)"
+    )
+    p.set_defaults(func=cmd_policy_check)
 
 
 def _workers(value: int | None) -> int:
@@ -145,6 +183,7 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         after_success_s=args.after_success,
         workers=_workers(args.workers),
         use_ray=args.ray,
+        video=not args.no_video,
     )
     bar = tqdm(total=args.episodes, unit="episode", disable=args.no_progress, file=sys.stderr)
 
@@ -158,14 +197,14 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         report = module.generate_dataset(settings, progress)
     finally:
         bar.close()
-    print(
+    say(
         f"wrote {report.episodes} episodes ({report.frames} frames) to {report.root} in "
         f"{report.wall_seconds:.1f} s with {report.workers} worker(s): "
         f"{report.speed:.1f}x real time"
     )
     if report.failed_seeds:
         seeds = ", ".join(str(s) for s in report.failed_seeds)
-        print(f"left out {len(report.failed_seeds)} failed take(s): seeds {seeds}")
+        say(f"left out {len(report.failed_seeds)} failed take(s): seeds {seeds}")
     return 0
 
 
@@ -192,7 +231,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     finally:
         bar.close()
     low, high = report.interval
-    print(
+    say(
         f"{report.task} (randomize {report.randomize}): success {report.successes}/"
         f"{report.episodes} = {100 * report.success_rate:.0f} % "
         f"(95 % interval {100 * low:.0f}-{100 * high:.0f} %) in {report.wall_seconds:.1f} s "
@@ -200,12 +239,27 @@ def cmd_eval(args: argparse.Namespace) -> int:
     )
     times = report.success_times
     if times:
-        print(f"time to success: mean {sum(times) / len(times):.2f} s, "
+        say(f"time to success: mean {sum(times) / len(times):.2f} s, "
               f"median {sorted(times)[len(times) // 2]:.2f} s (simulated)")  # fmt: skip
     videos = [o.video for o in report.outcomes if o.video]
     if videos:
-        print(f"videos of {len(videos)} failure(s) in {videos[0].rsplit('/', 1)[0]}")
+        say(f"videos of {len(videos)} failure(s) in {videos[0].rsplit('/', 1)[0]}")
     return 0
+
+
+def cmd_policy_check(args: argparse.Namespace) -> int:
+    from ..robot.policycheck import check_policy
+
+    result = check_policy(args.policy, args.robot_config)
+    for finding in result.mismatches:
+        say(f"{finding.what}: {finding.message}")
+    for note in result.notes:
+        say(f"note: {note}")
+    if result.ok:
+        say(f"OK: {args.policy} reads nothing {args.robot_config} does not deliver")
+        return 0
+    say(f"{len(result.mismatches)} mismatch(es): the policy would not see what it was trained on")
+    return 1
 
 
 __all__ = ["PLUGINS", "add_learning_commands", "plugin_module"]

@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
+import select
 import signal
 import sys
 from collections.abc import Callable, Sequence
@@ -34,7 +36,7 @@ from typing import Any
 from .. import __version__
 from ..errors import So101SimError
 from .commands import cmd_check, cmd_model_path, cmd_pose, cmd_teleop, cmd_view
-from .output import SIGNALS, _say, _signal_name, add_arm_option
+from .output import SIGNALS, EscapingFormatter, _say, _signal_name, add_arm_option
 from .run import cmd_hold, cmd_run
 from .studio import add_web_options
 from .tools import (
@@ -232,15 +234,33 @@ def _add_teleop_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--duration", type=float, help="stop after this many seconds (default: never)")
 
 
+def _stdout_closed() -> bool:
+    """Whether the standard output's reader has gone (a pipe closed, as by ``| head``); if so
+    the output goes to the null device from now on, so Python's flush at exit stays quiet."""
+    try:
+        fd = sys.stdout.fileno()
+        poll = select.poll()  # a pipe with no reader left polls as an error (Linux, macOS: hangup)
+        poll.register(fd, select.POLLOUT)
+        gone = any(ev & (select.POLLERR | select.POLLHUP) for _, ev in poll.poll(0))
+    except (AttributeError, OSError, ValueError):  # no poll (Windows), or no real stdout
+        return False
+    if gone:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, fd)
+        os.close(null)
+    return gone
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     argv, script_args = split_script_args(list(sys.argv[1:] if argv is None else argv))
     args = parser.parse_args(argv)
     if script_args is not None:
         args.script_args = [*args.script_args, *script_args]
+    handler = logging.StreamHandler()  # stderr; control characters escaped as all output
+    handler.setFormatter(EscapingFormatter("%(levelname)s %(name)s: %(message)s"))
     logging.basicConfig(
-        level=logging.DEBUG if args.verbose else logging.WARNING,
-        format="%(levelname)s %(name)s: %(message)s",
+        level=logging.DEBUG if args.verbose else logging.WARNING, handlers=[handler]
     )
     with SIGNALS:
         try:
@@ -248,6 +268,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         except So101SimError as exc:
             _say(f"so101sim: error: {exc}", err=True)
             code = 2
+        except BrokenPipeError:
+            if not _stdout_closed():
+                raise
+            return 128 + signal.SIGPIPE  # `so101sim check | head`: the reader has what it wanted
         except KeyboardInterrupt as exc:
             signum = getattr(exc, "signum", signal.SIGINT)
             _say(f"so101sim: interrupted ({_signal_name(signum)})", err=True)

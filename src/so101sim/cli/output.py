@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import logging
 import math
 import os
+import re
 import signal
 import sys
 import threading
@@ -31,6 +33,39 @@ if TYPE_CHECKING:
 
 
 # ---------------------------------------------------------------------------- printing
+_CONTROLS = re.compile(
+    "[\x00-\x08\x0b-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028\u2029\u202a-\u202e\u2066-\u2069]"
+)
+_CONTROLS_AND_LINES = re.compile(_CONTROLS.pattern[:-1] + "\t\n]")
+
+
+def escape_controls(text: str, *, lines: bool = True) -> str:
+    """``text`` with every control character written as an escape (``\\x1b`` → ``\\u001b``):
+    the terminal shows what a file or a user wrote and never acts on it (a step named
+    ``"\\u001b[1A\\u001b[2KPASS"`` would rewrite the verdict line). Escaped: C0 and C1 controls,
+    DEL, and the bidirectional marks and overrides; kept: newline and tab, unless ``lines`` is
+    False (a single name, e.g. a step's, stays on its line). Every printer of the command line
+    goes through it (:func:`say`, the log lines, the error lines)."""
+    pattern = _CONTROLS if lines else _CONTROLS_AND_LINES
+    return pattern.sub(lambda m: f"\\u{ord(m.group()):04x}", text)
+
+
+def say(
+    *values: object, sep: str = " ", end: str = "\n", file: Any = None, flush: bool = False
+) -> None:
+    """print(), with control characters escaped (:func:`escape_controls`): every line the
+    command line prints goes through here."""
+    text = escape_controls(sep.join(str(v) for v in values))
+    print(text, end=end, file=file if file is not None else sys.stdout, flush=flush)
+
+
+class EscapingFormatter(logging.Formatter):
+    """Log lines with control characters escaped, as everything else printed."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return escape_controls(super().format(record))
+
+
 ARM_HELP = (
     "arm profile, the servos' model: sts3215 (default: fitted on a real STS3215, it sags and "
     "lags as the real arm does), official (the vendored ideal position actuators), "
@@ -51,7 +86,8 @@ def format_segment(seg: SegmentResult) -> str:
     joint, err = seg.worst_tracking_error
     status = "" if seg.completed else "  (stopped early)"
     return (
-        f"{seg.phase} [{seg.kind}, {seg.start_time:.3f}-{seg.end_time:.3f} s, "
+        f"{escape_controls(seg.phase, lines=False)} [{seg.kind}, "
+        f"{seg.start_time:.3f}-{seg.end_time:.3f} s, "
         f"{seg.steps} steps]{status}\n"
         f"  target : {format_pose(seg.target)}\n"
         f"  reached: {format_pose(seg.reached)}\n"
@@ -61,9 +97,9 @@ def format_segment(seg: SegmentResult) -> str:
 
 def print_run(result: RunResult) -> None:
     for seg in result.segments:
-        print(format_segment(seg))
+        say(format_segment(seg))
     if not result.completed:
-        print(f"run ended early at t = {result.end_time:.3f} s (viewer closed)")
+        say(f"run ended early at t = {result.end_time:.3f} s (viewer closed)")
 
 
 def _progress_bar(frames: int | None) -> tqdm | None:
@@ -166,9 +202,9 @@ def _notice(text: str) -> None:
 
 
 def _say(text: str, *, err: bool = False) -> None:
-    """print(), except that a closed terminal (after SIGHUP) is not an error."""
+    """:func:`say`, except that a closed terminal (after SIGHUP) is not an error."""
     with contextlib.suppress(OSError):
-        print(text, file=sys.stderr if err else sys.stdout, flush=True)
+        say(text, file=sys.stderr if err else sys.stdout, flush=True)
 
 
 def _signal_name(signum: int) -> str:

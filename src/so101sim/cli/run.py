@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 from ..validation import check_duration
-from .output import _progress_bar, _reporting, print_run
+from .output import _progress_bar, _reporting, print_run, say
 from .tools import camera_options, output_hint
 
 if TYPE_CHECKING:
@@ -71,8 +71,8 @@ def _run(
             known=known,
         )
         if run.viewer.note:
-            print(run.viewer.note)
-        print(f"servo model: {servo_model(run.sim.model)}")
+            say(run.viewer.note)
+        say(f"servo model: {servo_model(run.sim.model)}")
         bar = _progress_bar(run.video_frames)
         with _reporting(run.recorder, bar) if run.recorder else contextlib.nullcontext():
             result = run.execute(
@@ -105,5 +105,5 @@ def cmd_hold(args: argparse.Namespace) -> int:
     from ..motion.segments import Hold  # imported here: it imports MuJoCo
     from ..units import STARTING_POSE, format_pose
 
-    print(f"holding the starting pose: {format_pose(STARTING_POSE)}")
+    say(f"holding the starting pose: {format_pose(STARTING_POSE)}")
     return _run(args, (Hold(duration, phase="hold"),), STARTING_POSE)

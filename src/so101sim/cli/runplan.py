@@ -30,7 +30,6 @@ from ..motion.plan import PlannedMotion, plan_segments, run_plan
 from ..motion.segments import RunResult, Segment
 from ..recording.framing import sweep_frames
 from ..recording.settings import VideoSettings
-from ..sim.limited import check_limited_moves
 from ..sim.simulation import Observer, Pacer, Simulation, ViewerObserver
 from ..units import STARTING_POSE, Pose
 from ..viewer import ViewerChoice, choose_viewer, open_viewer
@@ -61,11 +60,9 @@ def check_strict(
 ) -> None:
     """Refuse, before anything runs, a ``limited`` move shorter than the joint limits allow
     (instead of stretching it): raises :class:`~so101sim.errors.TrajectoryLimitError` naming
-    the first such move of ``segments`` run from ``start``."""
-    units = arm_units(model)
-    check_limited_moves(
-        units.pose_to_array(start), segments, model.opt.timestep, units=units, strict=True
-    )
+    the first such move of ``segments`` run from ``start`` (the motion planner's own check,
+    :func:`~so101sim.motion.plan.plan_segments` with ``strict``)."""
+    plan_segments(model, segments, arm_units(model).pose_to_array(start), strict=True)
 
 
 @dataclass
@@ -157,12 +154,11 @@ def prepare_run(
     """
     viewer = choose_viewer(headless)
     loaded = run_model(model, headless=headless, outputs=outputs, arm=arm)
-    if strict:
-        check_strict(loaded, segments, start)
     pacer = Pacer(speed)  # checks the speed before anything opens
     sim = Simulation(loaded, initial_pose=start)
-    # every target and duration, before anything runs (tip moves planned in full), once
-    plan = plan_segments(sim.model, segments, sim.commanded_array(), known=known)
+    # every target and duration, before anything runs (tip moves planned in full), once; with
+    # ``strict``, a limited move too short for the joint limits refused
+    plan = plan_segments(sim.model, segments, sim.commanded_array(), known=known, strict=strict)
     recorder = None
     if outputs is not None and outputs.wanted:
         from ..recording import Recorder  # imported here: only a run that writes files needs it

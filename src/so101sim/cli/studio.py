@@ -21,6 +21,8 @@ import time
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
+from .output import say
+
 if TYPE_CHECKING:
     from ..studio import Studio
 
@@ -69,7 +71,7 @@ def announce(url: str, what: str = "the studio", studio: Any = None) -> None:
     """Print the page's URL (a link in a notebook), the addresses the studio really listens
     on, and a warning (stderr) when they reach beyond this machine."""
     if studio is not None and studio.warning:
-        print(f"so101sim: warning: {studio.warning}", file=sys.stderr, flush=True)
+        say(f"so101sim: warning: {studio.warning}", file=sys.stderr, flush=True)
     where = ""
     if studio is not None:
         scope = "beyond this machine" if studio.warning else "this machine only"
@@ -80,7 +82,7 @@ def announce(url: str, what: str = "the studio", studio: Any = None) -> None:
 
             display(HTML(f'{what}: <a href="{url}" target="_blank">{url}</a>{where}'))
             return
-    print(f"{what}: open {url} in a web browser (Ctrl-C to stop{where})", flush=True)
+    say(f"{what}: open {url} in a web browser (Ctrl-C to stop{where})", flush=True)
 
 
 class _UntilSignal:
@@ -151,12 +153,12 @@ def _linger(studio: Studio, seconds: float) -> None:
     studio.finish()
     if seconds <= 0:
         return
-    print(f"the run is over: replay it on the page for {seconds:g} s more (Ctrl-C to stop)")
+    say(f"the run is over: replay it on the page for {seconds:g} s more (Ctrl-C to stop)")
     with _UntilSignal() as until:
         until.studio = studio
         until.sleep(seconds)
     if until:
-        print("stopped")
+        say("stopped")
 
 
 # ---------------------------------------------------------------------------- view
@@ -177,7 +179,7 @@ def view_web(args: argparse.Namespace) -> int:
             observer = StudioObserver(studio, Pacer(1.0))
             while not until:
                 sim.hold(0.2, observers=[observer], phase="hold")
-    print("stopped")
+    say("stopped")
     return 0
 
 
@@ -242,14 +244,14 @@ def pose_web(args: argparse.Namespace) -> int:
         until.studio = studio.studio
         with studio:
             announce(studio.url, "the pose finder", studio.studio)
-            print(
+            say(
                 "Move the joint sliders on the page (degrees; gripper 0-100). Each pose the "
                 "arm is left in is printed below; Ctrl-C to finish.",
                 flush=True,
             )
             for change in studio.poses():
-                print(format_pose(change), flush=True)
-    print("stopped")
+                say(format_pose(change), flush=True)
+    say("stopped")
     return 0
 
 
@@ -307,10 +309,10 @@ def demo_web(args: argparse.Namespace, format_figures: Any) -> int:
                 if result.success_time is not None
                 else "FAILED"
             )
-            print(f"{args.task}, seed {result.seed}: {status} ({result.sim_time:.2f} s simulated)")
-            print(format_figures(result.figures))
+            say(f"{args.task}, seed {result.seed}: {status} ({result.sim_time:.2f} s simulated)")
+            say(format_figures(result.figures))
             if written is not None:
-                print(f"wrote the video to {written}")
+                say(f"wrote the video to {written}")
             _linger(studio, args.linger)
     finally:
         if recorder is not None:
@@ -341,10 +343,10 @@ def record_web(args: argparse.Namespace, options: dict[str, Any]) -> int:
     try:
         run = run_script(args.script, list(args.script_args), args.output, live=live, **options)
         if run.message:
-            print(run.message, file=sys.stderr)
+            say(run.message, file=sys.stderr)
         for kind, path in run.outputs.items():
-            print(f"wrote the {kind} to {path}")
-        print(f"{args.script}: {run.simulated_seconds:.3f} s of simulated time")
+            say(f"wrote the {kind} to {path}")
+        say(f"{args.script}: {run.simulated_seconds:.3f} s of simulated time")
         if "studio" in holder:
             _linger(holder["studio"], args.linger)
         return run.exit_status

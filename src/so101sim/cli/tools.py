@@ -10,13 +10,12 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
-import traceback
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from ..errors import MotionFileError, RecordingError
-from .output import _say
+from .output import _say, say
 from .studio import add_web_options
 
 SubParsers = Any  # argparse's private _SubParsersAction
@@ -189,7 +188,11 @@ def split_script_args(argv: list[str]) -> tuple[list[str], list[str] | None]:
 
 
 def cmd_record(args: argparse.Namespace) -> int:
-    from ..lab.handin import run_script, script_line  # imported here: it imports MuJoCo
+    from ..lab.handin import (
+        run_script,
+        script_line,
+        script_traceback,
+    )  # imported here: it imports MuJoCo
     from ..recording import VideoSettings
 
     args.output = record_output(args)
@@ -216,15 +219,16 @@ def cmd_record(args: argparse.Namespace) -> int:
                 raise
             _say(f"so101sim: error: {where}: {exc}", err=True)
             return 2
-        traceback.print_exc()  # the script's own error, as Python shows it
-        print(f"so101sim: {where or args.script} raised {type(exc).__name__}", file=sys.stderr)
+        # the script's own error, as `python SCRIPT` shows it (not so101sim's frames)
+        say(script_traceback(exc, args.script), end="", file=sys.stderr)
+        say(f"so101sim: {where or args.script} raised {type(exc).__name__}", file=sys.stderr)
         return 1
     if run.message:
-        print(run.message, file=sys.stderr)
+        say(run.message, file=sys.stderr)
     for kind, path in run.outputs.items():
-        print(f"wrote the {kind} to {path}")
-    print(f"{args.script}: {run.simulated_seconds:.3f} s of simulated time")
-    print(f"servo model: {run.servo_model}")
+        say(f"wrote the {kind} to {path}")
+    say(f"{args.script}: {run.simulated_seconds:.3f} s of simulated time")
+    say(f"servo model: {run.servo_model}")
     return run.exit_status
 
 
@@ -260,7 +264,7 @@ def cmd_workspace(args: argparse.Namespace) -> int:
         args.plot, pitch=args.pitch, samples=args.samples, force=args.force, model=model
     )
     reach = sample_workspace(samples=args.samples, model=model).reach_m
-    print(f"wrote the workspace to {path}; the tip reaches {reach:.3f} m from the base")
+    say(f"wrote the workspace to {path}; the tip reaches {reach:.3f} m from the base")
     return 0
 
 
@@ -269,15 +273,11 @@ def cmd_cache(args: argparse.Namespace) -> int:
 
     if args.action == "clear":
         gone = modelcache.clear()
-        print(
-            f"deleted {gone.entries} compiled model(s), {gone.size / 1e6:.1f} MB, in {gone.folder}"
-        )
+        say(f"deleted {gone.entries} compiled model(s), {gone.size / 1e6:.1f} MB, in {gone.folder}")
         return 0
     info = modelcache.info()
     state = "on" if modelcache.enabled() else "off (SO101SIM_NO_CACHE)"
-    print(
-        f"{info.folder}: {info.entries} compiled model(s), {info.size / 1e6:.1f} MB; cache {state}"
-    )
+    say(f"{info.folder}: {info.entries} compiled model(s), {info.size / 1e6:.1f} MB; cache {state}")
     return 0
 
 
@@ -286,8 +286,8 @@ def cmd_examples(args: argparse.Namespace) -> int:
 
     copied = copy_examples(args.folder, force=args.force)
     for path in copied:
-        print(path)
-    print(f"copied {len(copied)} file(s) to {args.folder}")
+        say(path)
+    say(f"copied {len(copied)} file(s) to {args.folder}")
     return 0
 
 
@@ -322,7 +322,7 @@ def cmd_grade(args: argparse.Namespace) -> int:
                 f"folder, not {args.handin!r} (or no --summary)"
             )
         result = grade_log(args.handin, video=args.video, tolerances=tolerances)
-        print(json.dumps(grade_dict(result), indent=2) if args.json else format_grade(result))
+        say(json.dumps(grade_dict(result), indent=2) if args.json else format_grade(result))
         return 0 if result.passed else 1
     if args.video is not None:
         raise SettingError(
@@ -332,9 +332,9 @@ def cmd_grade(args: argparse.Namespace) -> int:
     if args.summary is not None:
         check_summary_path(args.summary, force=args.force)  # before anything is graded
     folder = grade_folder(args.handin, tolerances=tolerances)
-    print(json.dumps(folder_dict(folder), indent=2) if args.json else format_folder(folder))
+    say(json.dumps(folder_dict(folder), indent=2) if args.json else format_folder(folder))
     if args.summary is not None:
         written = write_summary(folder, args.summary, force=args.force)
         if not args.json:  # the JSON alone on stdout
-            print(f"wrote the summary to {written}")
+            say(f"wrote the summary to {written}")
     return 0 if folder.passed else 1

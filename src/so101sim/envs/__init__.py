@@ -4,7 +4,11 @@ RL libraries can run, and a scripted expert per task.
 Importing this package registers the environments with Gymnasium:
 
 * ``so101sim/PickCube-v0`` (:class:`PickCubeEnv`): pick up a 2.5 cm cube;
-* ``so101sim/CubeToBowl-v0`` (:class:`CubeToBowlEnv`): put the cube in a bowl.
+* ``so101sim/CubeToBowl-v0`` (:class:`CubeToBowlEnv`): put the cube in a bowl;
+* ``so101sim/Reach-v0`` (:class:`ReachEnv`): bring the tip to a target point;
+* ``so101sim/LiftCylinder-v0``, ``so101sim/LiftSphere-v0``: lift a cylinder, a ball.
+
+:func:`make_vec` makes N worlds of a task stepped together on every core (:mod:`.vector`).
 
 >>> import gymnasium as gym, so101sim.envs
 >>> env = gym.make("so101sim/PickCube-v0", cameras=["front"], render_mode="rgb_array")
@@ -14,6 +18,10 @@ Actions are joint targets in the arm's units (absolute, or deltas), or end-effec
 (:mod:`.actions`); observations a dict whose keys map onto LeRobot's (:mod:`.base`); tasks,
 success and rewards in :mod:`.tasks`; the experts in :mod:`.expert`, run by
 :func:`run_expert` and :func:`evaluate_expert`. See docs/tasks.md.
+
+May import: ``so101sim.robot`` (the gripper's torque), ``so101sim.recording``,
+``so101sim.viewer``, ``so101sim.scenes``, ``so101sim.motion``, ``so101sim.sim``,
+``so101sim.kinematics``, ``so101sim.model``, ``so101sim.units`` and the base modules.
 """
 
 import gymnasium as gym
@@ -21,6 +29,7 @@ import gymnasium as gym
 from .actions import CONTROL_MODES, ActionMap, ControlSettings
 from .base import REWARD_MODES, Evaluation, So101TaskEnv
 from .expert import CubeToBowlExpert, PickCubeExpert, ScriptedExpert, expert_for
+from .reach import REACH_SUCCESS_M, ReachEnv, ReachExpert, ReachTask
 from .run import (
     TASKS,
     EpisodeResult,
@@ -39,14 +48,20 @@ from .tasks import (
     SIM_TASKS,
     CubeToBowlEnv,
     CubeToBowlTask,
+    LiftCylinderEnv,
+    LiftSphereEnv,
     PickCubeEnv,
     PickCubeTask,
     sim_task,
 )
+from .vector import BACKENDS, So101VectorEnv, make_vec
 
 ENTRY_POINTS = {
     "so101sim/PickCube-v0": "so101sim.envs.tasks:PickCubeEnv",
     "so101sim/CubeToBowl-v0": "so101sim.envs.tasks:CubeToBowlEnv",
+    "so101sim/Reach-v0": "so101sim.envs.reach:ReachEnv",
+    "so101sim/LiftCylinder-v0": "so101sim.envs.tasks:LiftCylinderEnv",
+    "so101sim/LiftSphere-v0": "so101sim.envs.tasks:LiftSphereEnv",
 }
 
 
@@ -60,9 +75,11 @@ def register_envs() -> None:
 register_envs()
 
 __all__ = [
+    "BACKENDS",
     "CONTROL_MODES",
     "ENTRY_POINTS",
     "LIFT_SUCCESS_M",
+    "REACH_SUCCESS_M",
     "REWARD_MODES",
     "SIM_TASKS",
     "TASKS",
@@ -75,18 +92,25 @@ __all__ = [
     "Evaluation",
     "ExpertFrames",
     "ExpertScore",
+    "LiftCylinderEnv",
+    "LiftSphereEnv",
     "PickCubeEnv",
     "PickCubeExpert",
     "PickCubeTask",
+    "ReachEnv",
+    "ReachExpert",
+    "ReachTask",
     "SceneState",
     "ScriptedExpert",
     "SimTask",
     "So101TaskEnv",
+    "So101VectorEnv",
     "env_id",
     "evaluate_expert",
     "expert_for",
     "expert_frames",
     "make",
+    "make_vec",
     "register_envs",
     "run_episode",
     "run_expert",

@@ -28,8 +28,8 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import gymnasium as gym
+import mujoco
 import numpy as np
-from gymnasium import spaces
 
 from ..errors import ClosedError, SettingError, ViewerError
 from ..exitgate import gated
@@ -53,10 +53,11 @@ from ..scenes import (
 )
 from ..sim.simulation import Simulation
 from ..sim.stepping import advance_unobserved
-from ..units import JOINT_NAMES, LIMIT_TOLERANCE, STARTING_POSE, Pose
-from ..validation import check_choice, check_count, check_range
+from ..units import STARTING_POSE, Pose
+from ..validation import check_choice, check_range
 from .actions import ActionMap, ControlSettings
 from .grasp import limit_gripper
+from .observations import Observations, check_size
 from .scene_state import SceneState
 
 REWARD_MODES = ("dense", "sparse")
@@ -64,10 +65,6 @@ _ADVICE = (
     "Expected stable physics: reset the environment, and check the actions and the scene's masses"
 )
 RENDER_MODES = ("human", "rgb_array")
-MAX_JOINT_SPEED = 1e4
-"""Joint speeds in ``agent_vel`` are clipped to this (arm units per second)."""
-MAX_DISTANCE_M = 10.0
-"""Object positions in ``environment_state`` are clipped to this (metres)."""
 
 
 @dataclass(frozen=True)
@@ -80,7 +77,7 @@ class Evaluation:
     details: dict[str, float] = field(default_factory=dict)
 
 
-class So101TaskEnv(SceneState, gym.Env):
+class So101TaskEnv(Observations, SceneState, gym.Env):
     """A table-top task for the SO-101 (see the module's text). Subclasses name the scene
     preset and say how the task is judged (:meth:`evaluate`)."""
 
@@ -112,14 +109,15 @@ class So101TaskEnv(SceneState, gym.Env):
         initial_pose: Pose | None = None,
         randomize: str | Randomization | dict[str, Any] | None = None,
         arm: ArmLike = None,
+        shared_model: mujoco.MjModel | None = None,
     ) -> None:
         if render_mode is not None:
             check_choice(render_mode, "render mode", RENDER_MODES)
         self.render_mode = render_mode
         self.reward_mode = check_choice(reward, "reward mode", REWARD_MODES)
         self.cameras = tuple(cameras)
-        self.image_size = _size(image_size, "image_size")
-        self.render_size = _size(render_size, "render_size")
+        self.image_size = check_size(image_size, "image_size")
+        self.render_size = check_size(render_size, "render_size")
         self.render_camera = check_choice(
             render_camera, "render camera", [*PRESET_CAMERAS, FREE_CAMERA]
         )
@@ -142,8 +140,12 @@ class So101TaskEnv(SceneState, gym.Env):
         self.arm = load_profile(arm)  # the servos' model: name, TOML file or None (default)
         self.scene = preset_scene(self.scene_name, cameras=self._camera_specs())
         self.randomize = randomization(randomize)
-        self.model = build_scene(self.scene, arm=self.arm, extra=scene_additions(self.randomize))
-        limit_gripper(self.model, fraction, self.arm)
+        if shared_model is None:
+            extra = scene_additions(self.randomize)
+            self.model = build_scene(self.scene, arm=self.arm, extra=extra)
+            limit_gripper(self.model, fraction, self.arm)
+        else:  # make_vec's worlds: one compiled model (built with these settings) for all
+            self.model = shared_model
         self.sim = Simulation(self.model, initial_pose=initial_pose or STARTING_POSE)
         self._period_steps = 1.0 / (hz * self.sim.timestep)  # physics steps per env step
         self.substeps = max(1, round(self._period_steps))  # nominal (exact at 25 Hz)
@@ -183,31 +185,6 @@ class So101TaskEnv(SceneState, gym.Env):
         if self.render_camera in PRESET_CAMERAS and self.render_camera not in names:
             specs.append(camera(self.render_camera))
         return specs
-
-    def _observation_space(self) -> spaces.Dict:
-        lower, upper = self.sim.units.limits
-        tol = LIMIT_TOLERANCE
-        n = len(JOINT_NAMES)
-        items: dict[str, spaces.Space] = {
-            "agent_pos": spaces.Box(
-                (lower - tol).astype(np.float32),
-                (upper + tol).astype(np.float32),
-                dtype=np.float32,
-            ),
-        }
-        if self.joint_velocities:
-            fastest = MAX_JOINT_SPEED
-            items["agent_vel"] = spaces.Box(-fastest, fastest, (n,), dtype=np.float32)
-        if self.object_state:
-            k = len(self.scene.objects)
-            bound = np.tile(np.r_[np.full(3, MAX_DISTANCE_M), np.ones(4)], k).astype(np.float32)
-            items["environment_state"] = spaces.Box(-bound, bound, dtype=np.float32)
-        if self.cameras:
-            h, w = self.image_size
-            items["pixels"] = spaces.Dict(
-                {c: spaces.Box(0, 255, (h, w, 3), dtype=np.uint8) for c in self.cameras}
-            )
-        return spaces.Dict(items)
 
     def _renderer(self, name: str, size: tuple[int, int]) -> FrameRenderer:
         key = f"{name}@{size[0]}x{size[1]}"
@@ -292,6 +269,16 @@ class So101TaskEnv(SceneState, gym.Env):
         self._check_open("step")
         targets = self.actions.targets(action, self.sim.commanded_array())
         self._advance(targets)
+        return self._finish_step()
+
+    def _physics_steps(self) -> int:
+        """The physics steps of the next control period (16 or 17 at 30 Hz: no drift)."""
+        k = self._steps
+        return max(1, round((k + 1) * self._period_steps) - round(k * self._period_steps))
+
+    def _finish_step(self) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        """After a control period's physics (here or in a batch, :mod:`.vector`): count the
+        step, judge the task, and answer as :meth:`step` does."""
         self._steps += 1
         ev = self.evaluate()
         reward = ev.dense if self.reward_mode == "dense" else float(ev.success)
@@ -304,8 +291,7 @@ class So101TaskEnv(SceneState, gym.Env):
         simulation's own stepping serves them; without, the stepping kernel takes them in MuJoCo's
         own loop (the same physics, without the per-step bookkeeping)."""
         sim = self.sim
-        k = self._steps
-        n = max(1, round((k + 1) * self._period_steps) - round(k * self._period_steps))
+        n = self._physics_steps()
         if sim.observers or self._viewer is not None:
             rows = np.broadcast_to(targets, (n, len(targets)))
             sim.advance(rows, viewer=self._viewer, phase=self.spec_name, keep_trace=False)
@@ -373,36 +359,5 @@ class So101TaskEnv(SceneState, gym.Env):
     def elapsed_steps(self) -> int:
         return self._steps
 
-    # -- observations
-    def _observation(self) -> dict[str, Any]:
-        sim = self.sim
-        space = self.observation_space["agent_pos"]
-        pos = np.clip(sim.pose_array(), space.low, space.high).astype(np.float32)
-        obs: dict[str, Any] = {"agent_pos": pos}
-        if self.joint_velocities:
-            vel = sim.data.qvel[sim.index.dof] / self._scale
-            obs["agent_vel"] = np.clip(vel, -MAX_JOINT_SPEED, MAX_JOINT_SPEED).astype(np.float32)
-        if self.object_state:
-            poses = [self.object_pose(o.name) for o in self.scene.objects]
-            state = np.concatenate(poses).astype(np.float32)
-            space = self.observation_space["environment_state"]
-            obs["environment_state"] = np.clip(state, space.low, space.high)
-        if self.cameras:
-            obs["pixels"] = {
-                c: self._renderer(c, self.image_size).render(sim.data).copy() for c in self.cameras
-            }
-        return obs
-
     def _info(self, ev: Evaluation) -> dict[str, Any]:
         return {"is_success": bool(ev.success), "time": self.sim.time, **ev.details}
-
-
-def _size(value: object, what: str) -> tuple[int, int]:
-    try:
-        h, w = value  # type: ignore[misc]
-    except (TypeError, ValueError):
-        raise SettingError(f"{what} = {value!r}; expected (height, width) in pixels") from None
-    dims = tuple(
-        check_count(v, what, minimum=16, maximum=4096, even=True, unit=" pixels") for v in (h, w)
-    )
-    return dims  # type: ignore[return-value]

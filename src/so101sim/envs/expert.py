@@ -37,6 +37,7 @@ from .planning import (
     pose_at,
     top_grasp,
 )
+from .reach import ReachExpert, ReachTask
 from .scene_state import SceneState
 from .tasks import CubeToBowlTask, PickCubeTask
 
@@ -135,9 +136,10 @@ class ScriptedExpert:
 
     def _plan_reach(self, n: int) -> None:
         env = self.env
-        cube = env.object_pose("cube")
+        name = getattr(env, "target", "cube")  # the object to pick up (lift: "object")
+        cube = env.object_pose(name)
         start = self._start()
-        spec = env.scene.object("cube")
+        spec = env.scene.object(name)
         self._grasp = top_grasp(env.model, cube[:2], _yaw(cube[3:]), spec.size[0], GRASP_Z_M, start)
         goal = pose_at(
             env.model, self._grasp.at_height(APPROACH_Z_M), self._grasp.roll, start, OPEN_GRIPPER
@@ -161,7 +163,7 @@ class ScriptedExpert:
     def _check_lifted(self) -> None:
         """After a lift that left the cube behind, open and start again from the reach."""
         env = self.env
-        if env.grasped("cube") or self.attempts + 1 >= MAX_ATTEMPTS:
+        if env.grasped(getattr(env, "target", "cube")) or self.attempts + 1 >= MAX_ATTEMPTS:
             return
         self.attempts += 1
         self._push(gripper_path(self._start(), OPEN_GRIPPER, self._steps("release")))
@@ -231,6 +233,7 @@ class CubeToBowlExpert(ScriptedExpert):
 EXPERTS: dict[type, Callable[[Any], ScriptedExpert]] = {
     PickCubeTask: PickCubeExpert,
     CubeToBowlTask: CubeToBowlExpert,
+    ReachTask: ReachExpert,
 }
 
 

@@ -174,11 +174,9 @@ def grasp_trial(
     grasp = top_grasp(model, start[:2], yaw, CUBE_SIZE_M, GRASP_Z_M, sim.commanded_array())
     above = grasp.at_height(0.07)
     sim.move_to(
-        tip=above, pitch=-90, roll=grasp.roll, duration=1.5, path="joint", profile="minimum_jerk"
+        tip=above, pitch=-90, roll=grasp.roll, duration=1.5, path="joint", shape="minimum_jerk"
     )
-    sim.move_to(
-        tip=grasp.position, pitch=-90, roll=grasp.roll, duration=1.0, profile="minimum_jerk"
-    )
+    sim.move_to(tip=grasp.position, pitch=-90, roll=grasp.roll, duration=1.0, shape="minimum_jerk")
     sim.hold(0.1)
     disturbed = np.linalg.norm(object_pose(model, sim.data, "cube")[:3] - start)
     sim.move_to({**sim.commanded(), "gripper": CLOSED_GRIPPER}, 0.5)
@@ -186,7 +184,7 @@ def grasp_trial(
     # the lift, commanded through the servos' sag (as the experts do): the default arm (a real
     # STS3215 at P = 16) would hold the cube a centimetre below the planned height
     _, rows = sim.plan_tip_move(
-        grasp.at_height(LIFT_Z_M), 1.0, pitch=-90, roll=grasp.roll, profile="minimum_jerk"
+        grasp.at_height(LIFT_Z_M), 1.0, pitch=-90, roll=grasp.roll, shape="minimum_jerk"
     )
     aim = ThroughSag(model)
     sim.advance(np.array([aim(row) for row in rows]), keep_trace=False)

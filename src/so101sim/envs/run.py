@@ -18,7 +18,13 @@ from ..recording import VideoRecorder, VideoSettings
 from ..validation import check_count, check_range
 from .expert import expert_for
 
-TASKS = {"pick_cube": "so101sim/PickCube-v0", "cube_to_bowl": "so101sim/CubeToBowl-v0"}
+TASKS = {
+    "pick_cube": "so101sim/PickCube-v0",
+    "cube_to_bowl": "so101sim/CubeToBowl-v0",
+    "reach": "so101sim/Reach-v0",
+    "lift_cylinder": "so101sim/LiftCylinder-v0",
+    "lift_sphere": "so101sim/LiftSphere-v0",
+}
 """Task names (as the scene presets name them) and their Gymnasium ids."""
 
 

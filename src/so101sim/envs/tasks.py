@@ -45,16 +45,20 @@ class PickCubeTask(SceneState):
     task = "pick_cube"
     task_description = "Pick up the red cube."
 
+    target = "cube"
+    """The object to pick up."""
+
     def evaluate(self) -> Evaluation:
-        cube = self.object_pose("cube")
-        rise = float(cube[2] - self.start_pose("cube")[2])
-        grasped = self.grasped("cube")
+        name = self.target
+        cube = self.object_pose(name)
+        rise = float(cube[2] - self.start_pose(name)[2])
+        grasped = self.grasped(name)
         distance = float(np.linalg.norm(self.grip_centre() - cube[:3]))
         reach = 1.0 - math.tanh(REACH_SCALE * distance)
         lift = float(np.clip(rise / LIFT_SUCCESS_M, 0.0, 1.0)) if grasped else 0.0
         success = grasped and rise >= LIFT_SUCCESS_M
         dense = 1.0 if success else (reach + float(grasped) + 2.0 * lift) / 4.0
-        details = {"cube_rise_m": rise, "grasped": float(grasped), "reach_distance_m": distance}
+        details = {f"{name}_rise_m": rise, "grasped": float(grasped), "reach_distance_m": distance}
         return Evaluation(success=success, dense=dense, details=details)
 
 
@@ -104,6 +108,24 @@ class CubeToBowlEnv(CubeToBowlTask, So101TaskEnv):
     default_episode_seconds = 12.0
 
 
+class LiftCylinderEnv(PickCubeEnv):
+    """Lift the 2.5 cm cylinder standing on the table 3 cm (the pick test on another shape)."""
+
+    scene_name = "lift_cylinder"
+    task = "lift_cylinder"
+    task_description = "Pick up the orange cylinder."
+    target = "object"
+
+
+class LiftSphereEnv(PickCubeEnv):
+    """Lift the 2.8 cm ball 3 cm (the pick test on another shape)."""
+
+    scene_name = "lift_sphere"
+    task = "lift_sphere"
+    task_description = "Pick up the green ball."
+    target = "object"
+
+
 class PickCubeSimTask(PickCubeTask, SimTask):
     """PickCube on a simulation stepped elsewhere (:func:`sim_task`)."""
 
@@ -112,9 +134,25 @@ class CubeToBowlSimTask(CubeToBowlTask, SimTask):
     """CubeToBowl on a simulation stepped elsewhere (:func:`sim_task`)."""
 
 
+class LiftCylinderSimTask(PickCubeSimTask):
+    """Lift the cylinder on a simulation stepped elsewhere (:func:`sim_task`)."""
+
+    scene_name = task = "lift_cylinder"
+    target = "object"
+
+
+class LiftSphereSimTask(PickCubeSimTask):
+    """Lift the ball on a simulation stepped elsewhere (:func:`sim_task`)."""
+
+    scene_name = task = "lift_sphere"
+    target = "object"
+
+
 SIM_TASKS: dict[str, type[SimTask]] = {
     "pick_cube": PickCubeSimTask,
     "cube_to_bowl": CubeToBowlSimTask,
+    "lift_cylinder": LiftCylinderSimTask,
+    "lift_sphere": LiftSphereSimTask,
 }
 """The tasks by name (each is also its scene preset's name)."""
 

@@ -4,10 +4,17 @@
   MuJoCo, built from an arm profile (:mod:`so101sim.model.arm`) by the arm's own actuator code;
 * :mod:`.benchdata`, :mod:`.benchfit`, :mod:`.bam`: the public bench runs, their scores, the
   profile's fit, and Rhoban's BAM M1 model for comparison;
-* :func:`compare` (:mod:`.compare`) and :func:`fit` (:mod:`.fit`): a real arm's recording (a
-  LeRobot dataset or a so101sim CSV log) replayed in the sim, and the profile fitted to it.
+* :func:`compare` (:mod:`.compare`) and :func:`fit` (:mod:`.fit`, :mod:`.fitparams`): a real
+  arm's recording (a LeRobot dataset or a so101sim CSV log) replayed in the sim, where it is
+  wrong (:mod:`.windows`), and the profile fitted to it; the recordings are read by
+  :mod:`.logs` (:mod:`.logdata`, :mod:`.lerobotlog`, :mod:`.csvlog`, :mod:`.calibration`),
+  trusting nothing in them.
 
 scipy and pyarrow are optional (``pip install 'so101sim[fidelity]'``); what needs them says so.
+
+May import: ``so101sim.recording`` (writing a replay's outputs), ``so101sim.motion``,
+``so101sim.sim``, ``so101sim.kinematics``, ``so101sim.model``, ``so101sim.units`` and the base
+modules.
 """
 
 from __future__ import annotations

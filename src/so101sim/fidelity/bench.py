@@ -26,6 +26,8 @@ from ..model.arm import (
     fill_delay_history,
     load_profile,
 )
+from ..model.servo import NOSLIP_ITERATIONS
+from ..sim.stepping import advance_unobserved, state_size
 from ..validation import check_count, check_range
 
 __all__ = ["BENCH_SUPPLY_V", "BenchBatch", "BenchRig", "ServoBench", "arm_mass_for"]
@@ -36,6 +38,7 @@ BENCH_SUPPLY_V = 12.0
 TIMESTEP = 0.0025
 """The bench's physics step, s (the runs are sampled every 5 ms: two steps a sample)."""
 
+_ADVICE = "expected a servo profile within its bounds (the bench diverged)"
 MAX_PENDULUMS = 5000
 MAX_SAMPLES = 200_000
 
@@ -120,6 +123,8 @@ class BenchBatch:
             if self.slew:  # every pendulum slew-limited (a huge limit: none), to refit it
                 delayed = replace(delayed, max_velocity=delayed.max_velocity or 1e3)
             apply_servo(spec, f"servo{i}", act, delayed, self.timestep)
+        if self.profile.static_friction:  # as apply_profile does for the arm
+            spec.option.noslip_iterations = NOSLIP_ITERATIONS
         self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
         self.servos = servos
@@ -198,6 +203,7 @@ class BenchBatch:
         mujoco.mj_forward(m, d)
         fill_delay_history(m, d)
         out = np.empty((n, t))
+        scratch = np.empty(state_size(m))
         last = en[:, 0]
         for k in range(t):
             out[:, k] = d.qpos
@@ -205,7 +211,7 @@ class BenchBatch:
             if not np.array_equal(en[:, k], last):
                 last = en[:, k]
                 self._set_enabled(last)
-            mujoco.mj_step(m, d, nstep=sub)
+            advance_unobserved(m, d, None, sub, self.timestep, scratch, advice=_ADVICE)
         if not np.isfinite(out).all():
             raise SettingError("the bench simulation diverged; expected finite servo values")
         return out

@@ -21,7 +21,9 @@ import numpy as np
 from ..model.arm import ArmLike, load_profile
 from ..sim.simulation import Simulation
 from ..units import JOINT_NAMES
+from .calibration import from_log, to_log
 from .logs import ArmLog, Episode, read_log
+from .windows import Window, still_frames, with_stall, worst_windows
 
 __all__ = ["CompareResult", "compare", "replay_episode"]
 
@@ -49,10 +51,16 @@ class CompareResult:
     command_baseline: dict[str, float]
     warnings: list[str] = field(default_factory=list)
     traces: list[dict[str, np.ndarray]] = field(default_factory=list, repr=False)
+    holds: dict[str, float] = field(default_factory=dict)
+    moves: dict[str, float] = field(default_factory=dict)
+    worst: list[Window] = field(default_factory=list)
+    gripper_blocked_frames: int = 0
 
     def to_json(self) -> dict[str, Any]:
         """The ``--json`` object: ``frames``, ``episodes``, ``joints`` {mae, rms, max, lag_s},
-        ``command_baseline`` {mae}."""
+        ``command_baseline`` {mae}, ``holds`` and ``moves`` (mae while each joint's command
+        holds still / moves; null where there is none), ``worst_windows`` [{episode, t0, t1,
+        mae, joint}], ``gripper_blocked_frames``."""
         return {
             "frames": int(self.frames),
             "episodes": [int(e) for e in self.episodes],
@@ -61,7 +69,27 @@ class CompareResult:
                 for n, e in self.joints.items()
             },
             "command_baseline": {n: {"mae": v} for n, v in self.command_baseline.items()},
+            "holds": {n: _num(v) for n, v in self.holds.items()},
+            "moves": {n: _num(v) for n, v in self.moves.items()},
+            "worst_windows": [
+                {"episode": w.episode, "t0": w.t0, "t1": w.t1, "mae": w.mae, "joint": w.joint}
+                for w in self.worst
+            ],
+            "gripper_blocked_frames": int(self.gripper_blocked_frames),
         }
+
+
+def _num(v: float) -> float | None:
+    return None if not np.isfinite(v) else float(v)
+
+
+def _split_mae(err: np.ndarray, mask: np.ndarray) -> dict[str, float]:
+    """Per joint, the mean |error| over the frames of ``mask`` (NaN where there are none)."""
+    out = {}
+    for j, n in enumerate(JOINT_NAMES):
+        m = mask[:, j]
+        out[n] = float(np.mean(np.abs(err[m, j]))) if m.any() else float("nan")
+    return out
 
 
 def replay_episode(sim: Simulation, episode: Episode) -> np.ndarray:
@@ -112,46 +140,93 @@ def compare(
     model: str | Path | None = None,
     keep_traces: bool = False,
     units: str = "auto",
+    robot_id: str | None = None,
 ) -> CompareResult:
     """Replay ``log``'s commands in the sim (profile ``arm``) and measure it against the real
     arm. ``episodes``: which ones (all by default); ``calibration``: LeRobot's calibration JSON
     for a range-mode dataset; ``units``: the dataset's units (``"auto"``, ``"degrees"``,
     ``"range"``: :func:`~so101sim.fidelity.logs.read_log`). Errors in arm units (degrees;
-    gripper 0–100)."""
+    gripper 0–100). ``robot_id``: the follower's LeRobot id, whose calibration JSON is read
+    from LeRobot's folder. A profile's ``[calibration]`` (fitted by ``so101sim fit`` on a
+    range-mode recording without that JSON) maps such a recording's readings to angles;
+    a recording in exact degrees is taken as it is."""
     prof = load_profile(arm)
     sim = Simulation(model, arm=prof)
     data = log if isinstance(log, ArmLog) else read_log(
-        log, sim.units, episodes=episodes, calibration=calibration, units=units
+        log, sim.units, episodes=episodes, calibration=calibration, units=units,
+        robot_id=robot_id,
     )  # fmt: skip
-    real, simd, cmd, traces, lags = [], [], [], [], []
+    cal = prof.calibration if data.range_guess else {}
+    warnings = list(data.warnings)
+    if prof.calibration and not data.range_guess:
+        warnings.append(
+            "the profile's [calibration] is not used: this recording's degrees are exact "
+            "(a calibration JSON or degrees), taken as given"
+        )
+    elif cal:
+        warnings.append("each body joint's reading mapped with the profile's [calibration]")
+    real, simd, cmd, traces, lags, still, used, per_ep = [], [], [], [], [], [], [], []
     for ep in data.episodes:
-        pred = replay_episode(sim, ep)
+        command, blocked = with_stall(ep.command, ep.measured, ep.times)
+        angles = Episode(ep.index, ep.times, from_log(command, cal), from_log(ep.measured, cal))
+        pred = to_log(replay_episode(sim, angles), cal)
         real.append(ep.measured)
         simd.append(pred)
         cmd.append(ep.command)
+        still.append(still_frames(ep.command, ep.times))
+        keep = np.ones(ep.measured.shape, dtype=bool)
+        keep[:, -1] = ~blocked
+        used.append(keep)
+        per_ep.append((ep.index, ep.times, np.abs(pred - ep.measured)))
         if keep_traces:
-            traces.append({"t": ep.times, "real": ep.measured, "sim": pred, "command": ep.command})
+            traces.append({"t": ep.times, "real": ep.measured, "sim": pred, "command": ep.command,
+                           "blocked": ~keep[:, -1]})  # fmt: skip
         period = float(np.median(np.diff(ep.times)))
         lags.append([_lag(ep.measured[:, j], pred[:, j], period) for j in range(len(JOINT_NAMES))])
-    r, s, c = (np.concatenate(x) for x in (real, simd, cmd))
+    r, s, c, st, ok = (np.concatenate(x) for x in (real, simd, cmd, still, used))
     weights = np.array([len(e.times) for e in data.episodes], dtype=float)
     lag = np.average(np.array(lags), axis=0, weights=weights)
     err = s - r
-    joints = {
-        n: JointError(
-            mae=float(np.mean(np.abs(err[:, j]))),
-            rms=float(np.sqrt(np.mean(err[:, j] ** 2))),
-            max=float(np.max(np.abs(err[:, j]))),
+    joints = {}
+    for j, n in enumerate(JOINT_NAMES):
+        e = err[ok[:, j], j] if ok[:, j].any() else err[:, j]  # a blocked gripper left out
+        joints[n] = JointError(
+            mae=float(np.mean(np.abs(e))),
+            rms=float(np.sqrt(np.mean(e**2))),
+            max=float(np.max(np.abs(e))),
             lag_s=float(lag[j]),
         )
+    base = {
+        n: float(np.mean(np.abs((c - r)[ok[:, j] if ok[:, j].any() else slice(None), j])))
         for j, n in enumerate(JOINT_NAMES)
     }
-    base = {n: float(np.mean(np.abs(c[:, j] - r[:, j]))) for j, n in enumerate(JOINT_NAMES)}
+    blocked = int((~ok[:, -1]).sum())
+    if blocked:
+        warnings.append(
+            f"the real gripper is blocked (stalled short of its command, on an object) in "
+            f"{blocked} frames: left out of the gripper's error (the sim has no object)"
+        )
     return CompareResult(
         frames=len(r), episodes=[e.index for e in data.episodes], fps=data.fps,
         profile=prof.name, joints=joints, command_baseline=base,
-        warnings=list(data.warnings), traces=traces,
+        warnings=warnings, traces=traces,
+        holds=_split_mae(err, st & ok), moves=_split_mae(err, ~st & ok),
+        worst=worst_windows(per_ep, JOINT_NAMES), gripper_blocked_frames=blocked,
     )  # fmt: skip
+
+
+def plot_heading(result: CompareResult, blocked: bool) -> str:
+    """The plot's heading: which episode it draws (the first compared), that the panels' mae
+    are over every compared episode, and what the shading means."""
+    eps = result.episodes
+    head = f"episode {eps[0]}" + (
+        f" (the first of the {len(eps)} compared; each panel's mae is over all of them)"
+        if len(eps) > 1
+        else ""
+    )
+    keys = ["shaded red: the worst windows of error"] if result.worst else []
+    keys += ["blue: the real gripper blocked"] if blocked else []
+    return head + ("\n" + "; ".join(keys) if keys else "")
 
 
 def plot_overlay(result: CompareResult, path: str | Path, *, force: bool = False) -> Path:
@@ -174,6 +249,14 @@ def plot_overlay(result: CompareResult, path: str | Path, *, force: bool = False
         ax.plot(tr["t"], tr["command"][:, j], ":", color="gray", label="command")
         ax.plot(tr["t"], tr["real"][:, j], color="black", label="real")
         ax.plot(tr["t"], tr["sim"][:, j], color="tab:orange", label=f"sim ({result.profile})")
+        for w in result.worst:  # the worst windows, marked on every joint
+            if w.episode == result.episodes[0]:
+                ax.axvspan(w.t0, w.t1, color="tab:red", alpha=0.12, lw=0)
+        if j == len(JOINT_NAMES) - 1 and tr["blocked"].any():
+            ax.fill_between(
+                tr["t"], 0, 1, where=tr["blocked"], color="tab:blue", alpha=0.1,
+                transform=ax.get_xaxis_transform(), label="gripper blocked",
+            )  # fmt: skip
         e = result.joints[name]
         ax.set_ylabel(f"{name}\n{'0-100' if name == 'gripper' else 'deg'}")
         ax.set_title(
@@ -181,6 +264,9 @@ def plot_overlay(result: CompareResult, path: str | Path, *, force: bool = False
             fontsize=9,
         )
     axes[0].legend(loc="upper right", fontsize=8)
+    fig.suptitle(plot_heading(result, bool(tr["blocked"].any())), fontsize=9)
     axes[-1].set_xlabel("time, s")
     fig.tight_layout()
-    return write_atomically(out, lambda p: fig.savefig(p, format="png", dpi=90), "plot")
+    return write_atomically(
+        out, lambda p: fig.savefig(p, format="png", dpi=90), "plot", force=force
+    )

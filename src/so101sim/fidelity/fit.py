@@ -5,22 +5,30 @@ The parameters of each joint's servo (by default ``kp_per_p``, ``torque_limit``,
 by all joints are found by robust least squares (scipy, soft-L1 loss) on the position error of
 the sim against the real arm, each episode replayed from its first measured pose as
 :func:`~so101sim.fidelity.compare.compare` does. Every evaluation replays all episodes for many
-parameter vectors at once: one :func:`mujoco.rollout.rollout` call per frame steps the whole
-batch (the current guess and one finite-difference neighbour per parameter) on all cores.
+parameter vectors at once: one call of the stepping kernel per frame
+(:class:`~so101sim.sim.stepping.BatchStepper`, ``mujoco.rollout``) steps the whole batch (the
+current guess and one finite-difference neighbour per parameter) on all cores.
+
+A range-mode recording without LeRobot's calibration JSON (its degrees a guess) also gets each
+body joint's calibration fitted: the reading is ``scale`` × angle + ``offset``
+(:data:`~so101sim.fidelity.fitparams.CALIBRATION_NAMES`), written to the profile's
+``[calibration]`` with standard errors, and used by ``compare`` on such recordings.
 
 A weak prior pulls each parameter toward the starting profile (a joint that barely moved in the
 recordings keeps its starting values instead of drifting); each parameter's standard error
-comes from the Jacobian at the solution. Episodes held out of the fit (the last one by default,
-when there are two or more) measure how well the fitted profile predicts motion it did not see.
+comes from the Jacobian at the solution. Whole episodes are held out of the fit (``holdout``;
+the last one by default, when there are two or more): the fitted profile, the default profile
+and the bare commands are all scored on them. Frames where the real gripper is blocked on an
+object (:func:`~so101sim.fidelity.windows.blocked_gripper`) are left out of the gripper's error.
 """
 
 from __future__ import annotations
 
+import copy
 import logging
-import math
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import mujoco
@@ -28,61 +36,61 @@ import numpy as np
 
 from ..errors import SettingError
 from ..model.arm import (
-    UNCERTAIN_FIELDS,
-    UNCERTAIN_LIMIT,
+    PROFILE_DEFAULT,
     ArmLike,
     ArmProfile,
     ServoParams,
+    fill_delay_history,
     load_profile,
     write_servo,
 )
 from ..model.build import build, recipe
 from ..model.load import arm_index, arm_units
+from ..sim.stepping import BatchStepper
 from ..units import JOINT_NAMES, ArmUnits
 from ..validation import check_count
+from .calibration import calibration_maps
 from .deps import need
+from .fitparams import (
+    BOUNDS,
+    CALIBRATION_NAMES,
+    FIT_NAMES,
+    MAX_DELAY_S,
+    PRIOR_SD,
+    TYPICAL,
+    FitResult,
+    get_value,
+    mae,
+    spread,
+    with_values,
+)
 from .logs import ArmLog, Episode, read_log
+from .windows import stall_episodes
 
 log = logging.getLogger(__name__)
 
 MAX_THREADS = 256  # threads for the parallel rollouts (one MjData each)
+FD_STEP = 1e-3  # finite-difference step, relative to each parameter's scale
+_ADVICE = "expected servo parameters within their bounds (a replay diverged)"
 
 __all__ = ["FIT_NAMES", "ArmReplayer", "FitResult", "fit"]
 
-FIT_NAMES: tuple[str, ...] = (
-    "kp_per_p",
-    "torque_limit",
-    "damping",
-    "frictionloss",
-    "armature",
-    "offset",
-)
-"""The per-joint servo fields :func:`fit` identifies by default (and the shared ``delay_s``)."""
+Calibration = tuple[np.ndarray, np.ndarray]  # per joint: the reading's scale and offset
 
-MAX_DELAY_S = 0.15
-"""The longest command delay a fit considers, s."""
 
-_BOUNDS = {
-    "kp_per_p": (0.02, 50.0),
-    "torque_limit": (0.05, 20.0),
-    "damping": (0.0, 20.0),
-    "viscous": (0.0, 10.0),
-    "frictionloss": (0.0, 3.0),
-    "drive_frictionloss": (0.0, 3.0),
-    "armature": (1e-4, 0.5),
-    "offset": (-0.2, 0.2),
-    "delay_s": (0.0, MAX_DELAY_S),
-    "max_velocity": (0.5, 30.0),  # only from a profile with a slew-limited goal
-}
-_TYPICAL = {"kp_per_p": 0.5, "torque_limit": 1.0, "damping": 0.5, "viscous": 0.1,
-            "frictionloss": 0.05, "drive_frictionloss": 0.05, "armature": 0.01,
-            "offset": 0.01, "delay_s": 0.01, "max_velocity": 1.0}  # fmt: skip
-_PRIOR_SD = {"offset": 0.05, "delay_s": 0.05}  # absolute; others: relative (50 %)
+def replay_model(base: ArmProfile, model_path: str | Path | None) -> mujoco.MjModel:
+    """The model a fit replays on: ``base`` applied with the longest delay a fit considers (so
+    any delay up to it can be written in place)."""
+    wide = replace(base, servo=replace(base.servo, delay_s=MAX_DELAY_S),
+                   joints={j: {k: v for k, v in d.items() if k != "delay_s"}
+                           for j, d in base.joints.items()})  # fmt: skip
+    # the model builder's, a one-off (not cached); the batch's copies are what the fit writes into
+    return build(recipe(model_path, arm=wide, keep=False))
 
 
 class ArmReplayer:
     """Replays recorded episodes on a batch of arms (one parameter set each), all in one
-    :func:`mujoco.rollout.rollout` call per frame.
+    :class:`~so101sim.sim.stepping.BatchStepper` call per frame.
 
     ``base``: the starting profile (its values where a batch entry does not say otherwise)."""
 
@@ -96,12 +104,7 @@ class ArmReplayer:
     ) -> None:
         self.episodes = list(episodes)
         self.base = base
-        wide = replace(base, servo=replace(base.servo, delay_s=MAX_DELAY_S),
-                       joints={j: {k: v for k, v in d.items() if k != "delay_s"}
-                               for j, d in base.joints.items()})  # fmt: skip
-        # the model builder's, a one-off (not cached); the batch's copies are what the fit
-        # writes into
-        self.model = build(recipe(model_path, arm=wide, keep=False))
+        self.model = replay_model(base, model_path)
         self.index = arm_index(self.model)
         self.units: ArmUnits = arm_units(self.model)
         self.threads = check_count(
@@ -111,45 +114,50 @@ class ArmReplayer:
 
     def _batch_models(self, n: int) -> list[mujoco.MjModel]:
         while len(self._models) < n:
-            import copy
-
             self._models.append(copy.copy(self.model))
         return self._models[:n]
 
-    def replay(self, servos: Sequence[dict[str, ServoParams]]) -> list[np.ndarray]:
-        """For each batch entry (joint -> servo), the predicted measured poses (arm units) of
-        every episode, concatenated: ``(nbatch, frames, 6)``."""
-        rollout = need("mujoco.rollout", "mujoco>=3.2")
+    def replay(
+        self,
+        servos: Sequence[dict[str, ServoParams]],
+        calibrations: Sequence[Calibration] | None = None,
+    ) -> np.ndarray:
+        """For each batch entry (joint -> servo; a reading's calibration, identity by default),
+        the predicted readings (arm units) of every episode, concatenated: ``(nbatch, frames,
+        6)``."""
         models = self._batch_models(len(servos))
         idx = self.index
         for m, joints in zip(models, servos, strict=True):
             for j, name in enumerate(JOINT_NAMES):
                 write_servo(m, int(idx.actuator[j]), int(idx.dof[j]), joints[name])
         offsets = np.array([[s[n].offset for n in JOINT_NAMES] for s in servos])
+        one = (np.ones(len(JOINT_NAMES)), np.zeros(len(JOINT_NAMES)))
+        cals = list(calibrations) if calibrations is not None else [one] * len(servos)
+        scale = np.array([c[0] for c in cals])[:, None, :]
+        shift = np.array([c[1] for c in cals])[:, None, :]
         datas = [mujoco.MjData(self.model) for _ in range(self.threads)]
         out = []
-        with rollout.Rollout(nthread=self.threads) as pool:
+        with BatchStepper(self.threads) as pool:
             for ep in self.episodes:
-                out.append(self._episode(pool, models, datas, ep, offsets))
+                out.append(self._episode(pool, models, datas, ep, offsets, scale, shift))
         return np.concatenate(out, axis=1)
 
-    def _episode(self, pool, models, datas, ep: Episode, offsets: np.ndarray) -> np.ndarray:
+    def _episode(self, pool, models, datas, ep: Episode, offsets, scale, shift) -> np.ndarray:
         m = self.model
         idx, units = self.index, self.units
         lo, hi = units.limits
         n = len(models)
-        start = units.to_radians(np.clip(ep.measured[0], lo, hi))
-        cmd = units.to_radians(np.clip(ep.command, lo, hi))
+        meas = (ep.measured[None] - shift) / scale  # (n, frames, 6): the angles read
+        cmd = units.to_radians(np.clip((ep.command[None] - shift) / scale, lo, hi))
+        start = units.to_radians(np.clip(meas[:, 0], lo, hi))
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
         states = np.empty((n, mujoco.mj_stateSize(m, spec)))
         d = datas[0]
         for b, model in enumerate(models):
             mujoco.mj_resetData(model, d)
-            d.qpos[idx.qpos] = start - offsets[b]
-            d.ctrl[idx.actuator] = start
+            d.qpos[idx.qpos] = start[b] - offsets[b]
+            d.ctrl[idx.actuator] = start[b]
             mujoco.mj_forward(model, d)
-            from ..model.arm import fill_delay_history
-
             fill_delay_history(model, d)
             mujoco.mj_getState(model, d, states[b], spec)
         dt = m.opt.timestep
@@ -159,40 +167,34 @@ class ArmReplayer:
         pred = np.empty((n, frames, len(JOINT_NAMES)))
         control = np.zeros((n, 1, m.nu))
         for k in range(frames):
-            q = states[:, qadr] + offsets
-            pred[:, k] = units.from_radians(q)
+            pred[:, k] = units.from_radians(states[:, qadr] + offsets)
             if k + 1 == frames:
                 break
             steps = int(marks[k + 1] - marks[k])
             if steps <= 0:
                 continue
             control[:, 0, :] = 0.0
-            control[:, 0, idx.actuator] = cmd[k]
-            st, _ = pool.rollout(models, datas, states, control, nstep=steps)
-            states = st[:, -1, :].copy()
-        return pred
+            control[:, 0, idx.actuator] = cmd[:, k]
+            states = pool.step(models, datas, states, control, steps, _ADVICE)
+        return pred * scale + shift
 
 
-@dataclass(frozen=True)
-class FitResult:
-    """What :func:`fit` found: the fitted profile, each fitted value and its standard error,
-    and the error (mean absolute, arm units) per joint on the fitted and held-out episodes."""
-
-    profile: ArmProfile
-    values: dict[str, dict[str, float]]
-    stderr: dict[str, dict[str, float]]
-    fit_episodes: list[int]
-    heldout_episodes: list[int]
-    fit_error: dict[str, float]
-    heldout_error: dict[str, float] | None
-    start_fit_error: dict[str, float]
-    start_heldout_error: dict[str, float] | None
-    evaluations: int
-
-
-def _mae(pred: np.ndarray, real: np.ndarray) -> dict[str, float]:
-    e = np.mean(np.abs(pred - real), axis=0)
-    return {n: float(e[j]) for j, n in enumerate(JOINT_NAMES)}
+def _split(eps: list[Episode], holdout: Sequence[int] | None) -> tuple[list, list]:
+    if holdout is None:
+        n_hold = 1 if len(eps) >= 2 else 0
+        return eps[: len(eps) - n_hold], eps[len(eps) - n_hold :]
+    have = [e.index for e in eps]
+    missing = [h for h in holdout if h not in have]
+    if missing:
+        raise SettingError(
+            f"--holdout names episode {missing[0]}, which is not among the episodes read "
+            f"({', '.join(map(str, have))}); expected some of them"
+        )
+    held = [e for e in eps if e.index in set(holdout)]
+    fitted = [e for e in eps if e.index not in set(holdout)]
+    if not fitted:
+        raise SettingError("--holdout holds out every episode; expected some left to fit on")
+    return fitted, held
 
 
 def fit(
@@ -202,28 +204,32 @@ def fit(
     episodes: list[int] | None = None,
     calibration: str | Path | None = None,
     units: str = "auto",
-    holdout: int | None = None,
+    holdout: Sequence[int] | None = None,
     names: Sequence[str] = FIT_NAMES,
     joints: Sequence[str] = JOINT_NAMES,
     fit_delay: bool = True,
+    fit_calibration: bool | None = None,
     max_evaluations: int = 30,
     threads: int | None = None,
     model: str | Path | None = None,
+    robot_id: str | None = None,
     progress: Callable[[int, float], None] | None = None,
 ) -> FitResult:
     """Fit ``arm`` (the starting profile) to the recordings ``logs``.
 
-    ``holdout``: how many episodes (the last ones) to keep out of the fit and predict (default:
-    1 when there are two episodes or more, else 0). ``names``/``joints``: what is fitted;
-    ``fit_delay``: also the shared command delay. ``max_evaluations`` bounds the solver's
-    iterations (each one replays the episodes for every parameter at once).
+    ``holdout``: the episodes (by index) kept out of the fit and predicted (default: the last
+    one when there are two or more). ``names``/``joints``: what is fitted; ``fit_delay``: also
+    the shared command delay; ``fit_calibration``: each body joint's calibration too (default:
+    when a recording's degrees are a guess: range mode without LeRobot's calibration JSON).
+    ``max_evaluations`` bounds the solver's iterations (each one replays the episodes for every
+    parameter at once).
 
     Raises:
-        SettingError: no usable episodes, unknown names or joints.
+        SettingError: no usable episodes, unknown names, joints or held-out episodes.
     """
     optimize = need("scipy.optimize", "scipy")
     start = load_profile(arm)
-    bad = [n for n in names if n not in _BOUNDS or n == "delay_s"]
+    bad = [n for n in names if n not in BOUNDS or n in ("delay_s", *CALIBRATION_NAMES)]
     if bad:
         raise SettingError(
             f"cannot fit {bad[0]!r}; expected servo fields among {', '.join(FIT_NAMES)}, "
@@ -237,29 +243,40 @@ def fit(
         threads = check_count(threads, "threads", minimum=1, maximum=MAX_THREADS)
     replayer_units = arm_units(_plain_model(model))
     eps: list[Episode] = []
+    guessed = False
     for item in logs:
         data = item if isinstance(item, ArmLog) else read_log(
-            item, replayer_units, episodes=episodes, calibration=calibration, units=units
+            item, replayer_units, episodes=episodes, calibration=calibration, units=units,
+            robot_id=robot_id,
         )  # fmt: skip
         eps.extend(data.episodes)
+        guessed = guessed or data.range_guess
     if not eps:
         raise SettingError("no episodes to fit; expected at least one recorded episode")
-    n_hold = (1 if len(eps) >= 2 else 0) if holdout is None else holdout
-    n_hold = check_count(n_hold, "holdout", minimum=0, maximum=len(eps) - 1)
-    fit_eps, held_eps = eps[: len(eps) - n_hold], eps[len(eps) - n_hold :]
-    rep = ArmReplayer(fit_eps, start, model_path=model, threads=threads)
+    fit_eps, held_eps = _split(eps, holdout)
+    with_cal = guessed if fit_calibration is None else fit_calibration
+    replayed, used = stall_episodes(fit_eps)
+    rep = ArmReplayer(replayed, start, model_path=model, threads=threads)
     real = np.concatenate([e.measured for e in fit_eps])
 
-    keys: list[tuple[str, str]] = [(j, n) for j in joints for n in names]
+    servo_names = [n for n in names if not (with_cal and n == "offset")]
+    keys: list[tuple[str, str]] = [(j, n) for j in joints for n in servo_names]
+    if with_cal:
+        keys += [(j, n) for j in joints if j in JOINT_NAMES[:5] for n in CALIBRATION_NAMES]
     if fit_delay:
         keys.append(("*", "delay_s"))
-    x0 = np.array([_get(start, j, n) for j, n in keys])
-    scale = np.array([max(abs(v), _TYPICAL[n]) for v, (_, n) in zip(x0, keys, strict=True)])
-    lo = np.array([_BOUNDS[n][0] for _, n in keys]) / scale
-    hi = np.array([_BOUNDS[n][1] for _, n in keys]) / scale
+    if not keys:
+        raise SettingError(
+            "nothing to fit: no servo field, no delay, and the recording's calibration is given "
+            "(a calibration JSON or degrees); expected something to fit"
+        )
+    x0 = np.array([get_value(start, j, n) for j, n in keys])
+    scale = np.array([max(abs(v), TYPICAL[n]) for v, (_, n) in zip(x0, keys, strict=True)])
+    lo = np.array([BOUNDS[n][0] for _, n in keys]) / scale
+    hi = np.array([BOUNDS[n][1] for _, n in keys]) / scale
     z0 = np.clip(x0 / scale, lo + 1e-9, hi - 1e-9)
     z_start = z0.copy()
-    prior_sd = np.array([_PRIOR_SD.get(n, 0.5 * abs(v) + 1e-3) for v, (_, n) in
+    prior_sd = np.array([PRIOR_SD.get(n, 0.5 * abs(v) + 1e-3) for v, (_, n) in
                          zip(x0, keys, strict=True)]) / scale  # fmt: skip
     n_res = real.size
     data_w = 1.0 / np.sqrt(n_res)
@@ -267,21 +284,21 @@ def fit(
     calls = [0]
 
     def profile_of(z: np.ndarray) -> ArmProfile:
-        return _with_values(start, keys, z * scale)
+        return with_values(start, keys, z * scale)
 
-    def servos_of(z: np.ndarray) -> dict[str, ServoParams]:
-        prof = profile_of(z)
-        return {n: prof.joint(n) for n in JOINT_NAMES}
+    def run(reps: ArmReplayer, profs: list[ArmProfile]) -> np.ndarray:
+        servos = [{n: p.joint(n) for n in JOINT_NAMES} for p in profs]
+        return reps.replay(servos, [calibration_maps(p.calibration) for p in profs])
 
     def residuals_batch(zs: list[np.ndarray]) -> list[np.ndarray]:
-        preds = rep.replay([servos_of(z) for z in zs])
+        preds = run(rep, [profile_of(z) for z in zs])
         calls[0] += len(zs)
         out = []
         for z, p in zip(zs, preds, strict=True):
-            r = ((p - real) * data_w).ravel()
+            r = ((p - real) * used * data_w).ravel()
             out.append(np.concatenate([r, (z - z_start) / prior_sd * prior_w]))
         if progress is not None:
-            progress(calls[0], float(np.mean(np.abs(preds[0] - real))))
+            progress(calls[0], float(np.mean(np.abs(preds[0] - real)[used])))
         return out
 
     cache: dict[bytes, np.ndarray] = {}
@@ -294,52 +311,42 @@ def fit(
         return cache[key]
 
     def jac(z: np.ndarray) -> np.ndarray:
-        h = 1e-3 * np.maximum(1.0, np.abs(z))
+        h = FD_STEP * np.maximum(1.0, np.abs(z))
         steps = []
         for i in range(len(z)):
             zi = z.copy()
             zi[i] = zi[i] + h[i] if zi[i] + h[i] <= hi[i] else zi[i] - h[i]
             steps.append(zi)
         res = residuals_batch([z, *steps])
-        f0 = res[0]
-        cols = [(r - f0) / (zi[i] - z[i]) for i, (r, zi) in enumerate(zip(res[1:], steps,
-                                                                         strict=True))]  # fmt: skip
+        pairs = enumerate(zip(res[1:], steps, strict=True))
+        cols = [(r - res[0]) / (zi[i] - z[i]) for i, (r, zi) in pairs]
         return np.stack(cols, axis=1)
 
-    start_pred = rep.replay([servos_of(z_start)])[0]
+    start_pred = run(rep, [profile_of(z_start)])[0]
     if fit_delay:  # the delay first, on a grid, all in one batch: a good start for the solver
-        grid = np.arange(0.0, MAX_DELAY_S + 1e-9, 0.005)
         zs = []
-        for dl in grid:
+        for dl in np.arange(0.0, MAX_DELAY_S + 1e-9, 0.005):
             z = z0.copy()
             z[-1] = np.clip(dl / scale[-1], lo[-1], hi[-1])
             zs.append(z)
-        preds = rep.replay([servos_of(z) for z in zs])
+        preds = run(rep, [profile_of(z) for z in zs])
         calls[0] += len(zs)
-        errs = [float(np.mean(np.abs(p - real))) for p in preds]
-        z0 = zs[int(np.argmin(errs))]
+        z0 = zs[int(np.argmin([float(np.mean(np.abs(p - real)[used])) for p in preds]))]
     sol = optimize.least_squares(
         fun, z0, jac=jac, bounds=(lo, hi), x_scale="jac", loss="soft_l1",
         f_scale=0.5 * data_w, max_nfev=max_evaluations,
     )  # fmt: skip
-    best = profile_of(sol.x)
-    jm = sol.jac
-    dof = max(1, n_res - len(keys))
-    s2 = float(np.sum(sol.fun[:n_res] ** 2)) / dof / data_w**2
-    cov = np.linalg.pinv(jm.T @ jm) * s2 * data_w**2
+    s2 = float(np.sum(sol.fun[:n_res] ** 2)) / max(1, n_res - len(keys)) / data_w**2
+    cov = np.linalg.pinv(sol.jac.T @ sol.jac) * s2 * data_w**2
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scale
     values: dict[str, dict[str, float]] = {}
     stderr: dict[str, dict[str, float]] = {}
     for (j, n), v, e in zip(keys, sol.x * scale, se, strict=True):
         values.setdefault(j, {})[n] = float(v)
         stderr.setdefault(j, {})[n] = float(e)
-    fit_pred = rep.replay([servos_of(sol.x)])[0]
-    held_err = start_held = None
-    if held_eps:
-        hold = ArmReplayer(held_eps, start, model_path=model, threads=threads)
-        hreal = np.concatenate([e.measured for e in held_eps])
-        hp = hold.replay([servos_of(sol.x), servos_of(z_start)])
-        held_err, start_held = _mae(hp[0], hreal), _mae(hp[1], hreal)
+    best = with_values(start, keys, sol.x * scale, se)
+    fit_pred = run(rep, [best])[0]
+    held = _heldout(held_eps, best, start, model, threads, run)
     return FitResult(
         profile=replace(
             best,
@@ -347,55 +354,39 @@ def fit(
             description=f"{start.name} fitted to recorded motion by so101sim fit "
             f"({len(fit_eps)} episode(s))",
             source="",
-            uncertainty=_spread(stderr),
+            uncertainty=spread(stderr) or dict(start.uncertainty),  # none fitted: the start's
         ),
         values=values,
         stderr=stderr,
         fit_episodes=[e.index for e in fit_eps],
         heldout_episodes=[e.index for e in held_eps],
-        fit_error=_mae(fit_pred, real),
-        heldout_error=held_err,
-        start_fit_error=_mae(start_pred, real),
-        start_heldout_error=start_held,
+        fit_error=mae(fit_pred, real, used),
+        heldout_error=held[0],
+        start_fit_error=mae(start_pred, real, used),
+        start_heldout_error=held[1],
         evaluations=calls[0],
+        default_heldout_error=held[2],
+        command_heldout_error=held[3],
+        gripper_blocked_frames=int((~used[:, -1]).sum() + held[4]),
     )
 
 
-def _spread(stderr: dict[str, dict[str, float]]) -> dict[str, float]:
-    """The fitted profile's ``[uncertainty]``: per parameter, the largest of the joints'
-    standard errors (finite ones, within the table's bounds)."""
-    out: dict[str, float] = {}
-    for values in stderr.values():
-        for name, se in values.items():
-            if name in UNCERTAIN_FIELDS and math.isfinite(se):
-                out[name] = max(out.get(name, 0.0), float(se))
-    return {k: min(v, UNCERTAIN_LIMIT[k]) for k, v in out.items()}
+def _heldout(held_eps, best, start, model, threads, run) -> tuple:
+    """On the held-out episodes: the fitted profile's, the start's, the default profile's and
+    the bare commands' errors, and the frames of a blocked gripper (Nones when none)."""
+    if not held_eps:
+        return None, None, None, None, 0
+    hreal = np.concatenate([e.measured for e in held_eps])
+    replayed, hused = stall_episodes(held_eps)
+    hp = run(ArmReplayer(replayed, start, model_path=model, threads=threads), [best, start])
+    default = load_profile(PROFILE_DEFAULT)
+    dp = run(ArmReplayer(replayed, default, model_path=model, threads=threads), [default])[0]
+    hcmd = np.concatenate([e.command for e in held_eps])
+    return (mae(hp[0], hreal, hused), mae(hp[1], hreal, hused), mae(dp, hreal, hused),
+            mae(hcmd, hreal, hused), int((~hused[:, -1]).sum()))  # fmt: skip
 
 
 def _plain_model(path: str | Path | None) -> mujoco.MjModel:
     from ..model.load import load_model
 
     return load_model(path)
-
-
-def _get(profile: ArmProfile, joint: str, name: str) -> float:
-    if joint == "*":
-        return float(getattr(profile.servo, name))
-    return float(getattr(profile.joint(joint, scaled=False), name))
-
-
-def _with_values(
-    profile: ArmProfile, keys: Sequence[tuple[str, str]], values: np.ndarray
-) -> ArmProfile:
-    """``profile`` with the fitted values, as its TOML holds them (at its ``measured_at_v``:
-    the model gets them scaled to ``supply_v`` as for any profile)."""
-    servo = profile.servo
-    joints = {j: dict(d) for j, d in profile.joints.items()}
-    for (j, n), v in zip(keys, values, strict=True):
-        if j == "*":
-            servo = replace(servo, **{n: float(v)})
-            for d in joints.values():
-                d.pop(n, None)
-        else:
-            joints.setdefault(j, {})[n] = float(v)
-    return replace(profile, servo=servo, joints=joints)

@@ -12,6 +12,8 @@ docs/kinematics.md.
   :func:`line_deviation` (how far a run's tip strayed from a line) -> :class:`LineDeviation`;
 * :func:`is_reachable`, :func:`sample_workspace`, :func:`plot_workspace`;
 * :func:`planar_arm`: the chain's numbers (link lengths, axes) read from the model.
+
+May import: ``so101sim.model``, ``so101sim.units`` and the base modules.
 """
 
 from .core import BASE_SITE, TIP_SITE, Kinematics, TipPose, for_model, tip_pose, tip_positions

@@ -205,8 +205,18 @@ class Kinematics:
         rows = np.radians(np.atleast_2d(np.asarray(values, dtype=float))[:, :N_BODY])
         out = np.empty((len(rows), 3))
         with self.lock:
+            if not self._base_is_world or not isinstance(self._qpos, slice):
+                for i, q in enumerate(rows):
+                    out[i] = self.frame_at(q).position
+                return out
+            # frame_at's position without the rest of the frame: a long move's rows (the
+            # preflight's line check) cost one mj_kinematics each
+            m, d, kinematics = self.model, self.data, mujoco.mj_kinematics
+            qpos, tip = d.qpos[self._qpos], d.site_xpos[self.tip_site]  # views, made once
             for i, q in enumerate(rows):
-                out[i] = self.frame_at(q).position
+                qpos[:] = q
+                kinematics(m, d)
+                out[i] = tip
         return out
 
     def pose_values(self, pose: Pose | np.ndarray, *, base: np.ndarray | None = None) -> np.ndarray:

@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 
 from ..units import STARTING_POSE, ZERO_POSE
-from ..validation import check_count, check_output_path, check_range
+from ..validation import check_count, check_output_path, check_range, claim_path
 from .core import N_BODY, Kinematics, for_model
 from .geometry import planar_arm_of
 from .ik import solve_ik
@@ -171,7 +171,10 @@ def plot_workspace(
     tmp = p.with_name(f".{p.stem}.{os.getpid()}.partial{p.suffix}")
     try:
         fig.savefig(tmp, dpi=120)
-        os.replace(tmp, p)
+        if force:
+            os.replace(tmp, p)
+        else:
+            claim_path(tmp, p)  # another process's plot there by now: one error, not two files
     finally:
         tmp.unlink(missing_ok=True)
     return p

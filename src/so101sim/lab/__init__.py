@@ -1,13 +1,16 @@
 """The lab: the handout's helpers on ``(m, d)``, the hand-in recorder and the starter files.
 
-An app layer: may import ``so101sim.preflight``, ``so101sim.recording``, ``so101sim.viewer``,
-``so101sim.motion``, ``so101sim.sim``, ``so101sim.model`` and the base modules. Modules:
+Modules:
 :mod:`.helpers` (``move_to_pose``, ``hold_position``, ...), :mod:`.handin` (``so101sim record``),
 :mod:`.recviewer` (the recording viewer ``record`` returns), :mod:`.arming` (``record --arm``:
 the script's model run with a profile), :mod:`.simclock` (simulated time for scripts),
 :mod:`.starter` (``so101sim examples``), :mod:`.grade` (``so101sim grade``: :mod:`.gradelog`
 reads a log, :mod:`.gradevideo` checks the video, :mod:`.gradefolder` grades a folder,
 :mod:`.gradereport` says it).
+
+May import: ``so101sim.preflight``, ``so101sim.recording``, ``so101sim.viewer``,
+``so101sim.motion``, ``so101sim.sim``, ``so101sim.kinematics``, ``so101sim.model``,
+``so101sim.units`` and the base modules.
 """
 
 from typing import TYPE_CHECKING

@@ -22,6 +22,7 @@ import logging
 import os
 import runpy
 import sys
+import traceback
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -131,9 +132,11 @@ def hold_start(m: mujoco.MjModel, d: mujoco.MjData) -> str:
     d.ctrl[idx.actuator] = np.where(limited, np.clip(q, lo, hi), q)
     units = arm_units(m)
     pose = ", ".join(f"{n}={v:.1f}" for n, v in units.array_to_pose(units.from_radians(q)).items())
+    closed = units.from_radians(np.zeros(len(q)))[-1]  # the gripper's qpos 0, in 0-100 units
     return (
         "the script's arm targets (d.ctrl) were all 0 at the start while the arm stands at "
-        f"{pose}: so101sim record commands that starting pose (the arm starts holding it, "
+        f"{pose} (degrees; the gripper on so101sim's 0-100 scale, where qpos 0 is "
+        f"{closed:.1f}): so101sim record commands that starting pose (the arm starts holding it, "
         "rather than lurching toward zero on the first step); set d.ctrl or use "
         "so101sim.lab.set_initial_pose to choose"
     )
@@ -291,6 +294,32 @@ def script_line(exc: BaseException, script: str | os.PathLike[str]) -> str:
     return f"{script}:{line}" if line else ""
 
 
+def script_traceback(exc: BaseException, script: str | os.PathLike[str]) -> str:
+    """``exc``'s traceback as ``python script`` would show it: from the script's own first
+    frame on, without the frames of so101sim and runpy that ran it; a syntax error in the
+    script itself as Python shows one (no traceback); the whole traceback when the script's
+    code is not in it."""
+    try:
+        target = Path(script).resolve()
+    except OSError:
+        target = None
+
+    def ours(filename: str | None) -> bool:
+        with contextlib.suppress(OSError, TypeError):
+            return target is not None and Path(filename).resolve() == target  # type: ignore[arg-type]
+        return False
+
+    last = "".join(traceback.format_exception_only(type(exc), exc))
+    if isinstance(exc, SyntaxError) and ours(exc.filename):
+        return last
+    tb = exc.__traceback__
+    while tb is not None and not ours(tb.tb_frame.f_code.co_filename):
+        tb = tb.tb_next
+    if tb is None:
+        return "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
+    return "Traceback (most recent call last):\n" + "".join(traceback.format_tb(tb)) + last
+
+
 def _exit_status(code: object) -> tuple[int, str]:
     """Python's rule for ``sys.exit(code)``: None is 0, an int is itself, anything else is
     printed (by the caller) and is 1."""
@@ -310,4 +339,5 @@ __all__ = [
     "record",
     "run_script",
     "script_line",
+    "script_traceback",
 ]

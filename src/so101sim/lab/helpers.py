@@ -37,13 +37,12 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ..errors import JointValueError
+from ..errors import JointValueError, SettingError
 from ..model.load import default_units
-from ..model.twin import contact_twin
 from ..preflight.check import Thresholds, describe
 from ..preflight.judge import judge
 from ..preflight.measure import StepRecorder, collect
-from ..preflight.states import StateRecorder, vectorisable
+from ..preflight.states import StateRecorder, derivable
 from ..sim.simulation import Observer, SegmentResult, Simulation
 from ..units import JOINT_NAMES, Pose
 from .arming import attached
@@ -93,13 +92,23 @@ def convert_to_list(position_dict: Pose) -> list[float]:
     return units.to_radians(units.pose_to_array(position_dict, check_limits=False)).tolist()
 
 
+def _model_of(d: object) -> mujoco.MjModel:
+    """The model of the simulation's data ``d``; SettingError if ``d`` is not an MjData."""
+    if not isinstance(d, mujoco.MjData):
+        raise SettingError(
+            f"the simulation's data is {type(d).__name__}, not a mujoco.MjData; expected "
+            "the d of m, d = so101sim.load_model(), mujoco.MjData(m)"
+        )
+    return d.model
+
+
 def set_initial_pose(d: mujoco.MjData, position_dict: Pose, *, clip: bool = False) -> None:
     """Place the arm at ``position_dict`` (at rest) and command it to stay there.
 
     Unlike the handout, this also sets the position targets, so the arm holds the pose rather
     than falling towards the targets' default of 0 on the first step.
     """
-    with attached(d.model, d) as sim:
+    with attached(_model_of(d), d) as sim:  # SettingError: d is not an MjData
         sim.set_pose(position_dict, clip=clip)
 
 
@@ -109,7 +118,7 @@ def send_position_command(d: mujoco.MjData, position_dict: Pose, *, clip: bool =
     MuJoCo's position actuators then pull each joint towards its target with the model's PD
     gains. Raises before changing anything if a name, value or limit is wrong.
     """
-    with attached(d.model, d) as sim:
+    with attached(_model_of(d), d) as sim:
         sim.command_array(sim.units.pose_to_array(position_dict, clip=clip), check=False)
 
 
@@ -169,7 +178,7 @@ def _watched(
     forces that do not follow from the states, and no twin) is watched after every step
     instead (:class:`StepRecorder`)."""
     rec: StateRecorder | StepRecorder
-    exact = vectorisable(sim.model) or contact_twin(sim.model) is not None
+    exact = derivable(sim.model)  # the same test as so101sim check's
     rec = StateRecorder(sim.model) if exact else StepRecorder(sim.model)
     seg = run([rec])
     th = Thresholds()

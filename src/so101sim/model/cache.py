@@ -13,16 +13,22 @@ binary format (MJB) loads in a fifth of that time, bit for bit the same model.
 * **Physics only:** ``load_or_compile(..., physics_only=True)`` keeps a second entry, the model
   without its visual geoms, its collision meshes as their convex hulls
   (:mod:`so101sim.model.trim`): 18 MB instead of 67, for runs that never draw.
-* **Verified:** beside each entry, ``<entry>.digest`` holds its size and the CRC-32 of its
-  bytes, checked before MuJoCo reads them (a truncated or changed entry never reaches MuJoCo;
-  CRC-32 finds any burst of changed bits up to 32 long, and others but for 1 in 4 billion, at
-  a sixth of SHA-256's cost); a loaded model is
-  then checked against the source file (parsed, not compiled): its joints (names, ranges),
-  actuators (names, gains) and options (timestep, gravity). A bad or foreign entry is deleted
-  and the model compiled again, with one WARNING through :mod:`logging`.
+* **Verified:** beside each entry, ``<entry>.digest`` holds its size, the CRC-32 of its
+  bytes and the entry's own name (its key and kind: ``<key>`` or ``<key>-physics<N>``), all
+  checked before MuJoCo reads them (an entry renamed or swapped with another, digests
+  included, is refused: each is bound to what it holds); a truncated or changed entry never
+  reaches MuJoCo (CRC-32 finds any burst of changed bits up to 32 long, and others but for 1
+  in 4 billion, at a sixth of SHA-256's cost); a loaded model is then checked against the
+  source file (parsed, not compiled): its joints (names, ranges), actuators (names, gains)
+  and options (timestep, gravity). A bad or foreign entry is deleted and the model compiled
+  again, with one WARNING through :mod:`logging`.
 * **Safe:** the digest and then the entry are written under temporary names in the same folder
   and renamed, so two processes never see half a file. Any failure to read or write the cache (a
-  read-only home, a full disk) falls back to compiling, with a DEBUG log line.
+  read-only home, a full disk) falls back to compiling, with a DEBUG log line. Temporary files
+  a killed process left (``.*.partial``, older than :data:`STALE_PARTIAL_S`) are deleted by
+  the next write.
+* **Bounded:** a model folder over :data:`MAX_HASHED_BYTES` is not cached (one WARNING per
+  folder says so).
 
 The key hashes the folder's files on every load: about 10 ms for the SO-101's 16 MB.
 """
@@ -34,6 +40,7 @@ import hashlib
 import logging
 import os
 import tempfile
+import time
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -49,10 +56,16 @@ log = logging.getLogger(__name__)
 MAX_HASHED_BYTES = 512 * 1024 * 1024
 """A model folder larger than this is not cached (hashing it would cost more than compiling)."""
 
+STALE_PARTIAL_S = 3600.0
+"""A temporary ``.*.partial`` file older than this (seconds since it was last written) was
+left by a process that was killed: the next write deletes it. A live writer takes seconds."""
+
+_warned_large: set[Path] = set()  # the folders the "too large to cache" warning named
+
 ENTRY_SUFFIX = ".mjb"
 DIGEST_SUFFIX = ".digest"  # beside each entry: its size and the CRC-32 of its bytes
 REFUSED_SUFFIX = ".refused"  # a model the physics-only copy was refused for (empty file)
-FORMAT = 2  # part of every key: raised when what an entry holds or how it is checked changes
+FORMAT = 3  # part of every key: raised when what an entry holds or how it is checked changes
 
 
 def cache_dir() -> Path:
@@ -75,7 +88,16 @@ def _folder_digest(folder: Path) -> str | None:
     when it holds more than :data:`MAX_HASHED_BYTES` or cannot be read."""
     try:
         files = sorted(p for p in folder.rglob("*") if p.is_file())
-        if sum(p.stat().st_size for p in files) > MAX_HASHED_BYTES:
+        total = sum(p.stat().st_size for p in files)
+        if total > MAX_HASHED_BYTES:
+            if folder not in _warned_large:
+                _warned_large.add(folder)
+                log.warning(
+                    "model cache: not caching the model in %s: its folder holds %.0f MB, more "
+                    "than the %.0f MB the cache hashes (each load compiles it); expected a "
+                    "folder holding only the model's files",
+                    folder, total / 1e6, MAX_HASHED_BYTES / 1e6,
+                )  # fmt: skip
             return None
         h = hashlib.sha256()
         for p in files:
@@ -103,8 +125,9 @@ def _digest_of(entry: Path) -> Path:
     return entry.with_name(entry.name + DIGEST_SUFFIX)
 
 
-def _digest(size: int, crc: int) -> str:
-    return f"{size} crc32 {crc:08x}"
+def _digest(entry: Path, size: int, crc: int) -> str:
+    """The digest line of ``entry``: its size, CRC-32 and name (key and kind, bound to it)."""
+    return f"{size} crc32 {crc:08x} {entry.name.removesuffix(ENTRY_SUFFIX)}"
 
 
 def _file_digest(path: Path) -> str:
@@ -113,13 +136,13 @@ def _file_digest(path: Path) -> str:
     with path.open("rb") as f:
         while chunk := f.read(1 << 20):
             crc, size = zlib.crc32(chunk, crc), size + len(chunk)
-    return _digest(size, crc)
+    return _digest(path, size, crc)
 
 
 def _write(entry: Path, model: mujoco.MjModel) -> None:
     """Save ``model`` as ``entry``, its digest first (both renamed into place)."""
     data = _mjb_bytes(model)
-    digest = _digest(len(data), zlib.crc32(data))
+    digest = _digest(entry, len(data), zlib.crc32(data))
     _write_with(_digest_of(entry), lambda tmp: Path(tmp).write_text(digest))
     _write_with(entry, lambda tmp: Path(tmp).write_bytes(data))
 
@@ -133,6 +156,7 @@ def _mjb_bytes(model: mujoco.MjModel) -> bytes:
 def _write_with(entry: Path, write: Callable[[str], object]) -> None:
     """``write(tmp)`` a file next to ``entry``, then rename it to ``entry`` (atomic)."""
     entry.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_partials(entry.parent)
     fd, tmp = tempfile.mkstemp(prefix=".", suffix=".partial", dir=entry.parent)
     os.close(fd)
     try:
@@ -141,6 +165,21 @@ def _write_with(entry: Path, write: Callable[[str], object]) -> None:
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+
+
+def remove_stale_partials(folder: Path, older_than: float = STALE_PARTIAL_S) -> int:
+    """Delete the temporary files (``.*.partial``) in ``folder`` last written more than
+    ``older_than`` seconds ago: left by a process killed while it wrote (a live writer
+    renames its file within seconds). Returns how many were deleted."""
+    now, gone = time.time(), 0
+    for f in folder.glob(".*.partial"):
+        with contextlib.suppress(OSError):  # another process deleted or renamed it first
+            if f.is_file() and now - f.stat().st_mtime > older_than:
+                f.unlink()
+                gone += 1
+    if gone:
+        log.debug("model cache: deleted %d temporary file(s) left by killed processes", gone)
+    return gone
 
 
 def _read(entry: Path, source: Path, gains: bool = True) -> mujoco.MjModel | None:
@@ -155,7 +194,9 @@ def _read(entry: Path, source: Path, gains: bool = True) -> mujoco.MjModel | Non
         problem = f"cannot be read or has no digest ({exc})"
     else:
         problem = "does not match its digest (truncated or changed)"
-        if actual == expected:
+        if expected.split(" ")[3:] != actual.split(" ")[3:]:
+            problem = "holds another entry (its digest names another key or kind)"
+        elif actual == expected:
             try:
                 # an entry is only ever replaced whole (renamed into place): what MuJoCo reads
                 # here is what was hashed, or another whole entry of the same key
@@ -291,21 +332,41 @@ class CacheInfo:
     size: int
 
 
+def _files(folder: Path, pattern: str) -> list[Path]:
+    """The plain files matching ``pattern`` in ``folder`` (a folder or link named like an
+    entry is not one: it is left alone)."""
+    if not folder.is_dir():
+        return []
+    return [f for f in folder.glob(pattern) if f.is_file() and not f.is_symlink()]
+
+
 def info() -> CacheInfo:
     """The cache's folder, number of entries and total size."""
     folder = cache_dir()
-    files = list(folder.glob(f"*{ENTRY_SUFFIX}")) if folder.is_dir() else []
-    return CacheInfo(folder, len(files), sum(f.stat().st_size for f in files))
+    files = _files(folder, f"*{ENTRY_SUFFIX}")
+    size = 0
+    for f in files:
+        with contextlib.suppress(OSError):  # deleted meanwhile by another process
+            size += f.stat().st_size
+    return CacheInfo(folder, len(files), size)
 
 
 def clear() -> CacheInfo:
-    """Delete every cached model; return what was deleted."""
+    """Delete every cached model (the files the cache writes; anything else in the folder,
+    such as a folder named like an entry, is left as it is, with one WARNING); return what
+    was deleted."""
     before = info()
-    if before.folder.is_dir():
-        for f in before.folder.glob(f"*{ENTRY_SUFFIX}"):
+    folder = before.folder
+    # digests/*.txt: the folder-digest memo of cache format 1, no longer written
+    patterns = (f"*{ENTRY_SUFFIX}", f"*{DIGEST_SUFFIX}", f"*{REFUSED_SUFFIX}", ".*.partial")
+    for pattern in (*patterns, "digests/*.txt"):
+        for f in _files(folder, pattern):
             f.unlink(missing_ok=True)
-        # digests/*.txt: the folder-digest memo of cache format 1, no longer written
-        for pattern in (f"*{DIGEST_SUFFIX}", f"*{REFUSED_SUFFIX}", ".*.partial", "digests/*.txt"):
-            for f in before.folder.glob(pattern):
-                f.unlink(missing_ok=True)
+    if folder.is_dir():
+        left = [f.name for p in patterns for f in folder.glob(p) if f.exists() or f.is_symlink()]
+        if left:
+            log.warning(
+                "model cache: left %s in %s: not files the cache wrote (delete them by hand)",
+                ", ".join(sorted(left)), folder,
+            )  # fmt: skip
     return before

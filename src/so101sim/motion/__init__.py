@@ -1,10 +1,12 @@
 """The motion layer: segments (moves and holds) run on a simulation, and motion files (TOML).
 
-May import: ``so101sim.sim``, ``so101sim.kinematics``, ``so101sim.model`` and the base modules.
 Modules: :mod:`.moves` (``Move``, ``Hold``: a motion as data), :mod:`.plan` (a motion planned
 once: ``plan_segments``, ``run_plan``), :mod:`.segments` (``run_motion`` and the ``(m, d)``
-functions), :mod:`.file` (``load_motion``),
+functions), :mod:`.file` (``load_motion``), :mod:`.reader` (a motion file's settings and poses),
 :mod:`.lines` (reading a file, line numbers in its errors), :mod:`.tip` (straight tip moves).
+
+May import: ``so101sim.sim``, ``so101sim.kinematics``, ``so101sim.model``, ``so101sim.units``
+and the base modules.
 """
 
 from .plan import PlannedMotion, PlannedSegment, plan_segments, run_plan

@@ -51,19 +51,14 @@ the bounded reading come from :mod:`so101sim.motion.lines`. Tip moves are checke
 planned (in full, from the target before them: an unreachable point is an error with its line)
 by :mod:`so101sim.motion.tip`.
 
-(Over 400 lines: the loader is one class whose parts share the file's line lookup; the reading,
-the line scan and the tip moves are in the two modules named above.)
-
-Long on purpose: one loader (:class:`_Loader`) walks the TOML, and every rule a motion
-file obeys is in it, with its file:line error, in the order a file is read.
+The loader (:class:`_Loader`) reads the steps; the file's settings and poses, and the errors
+at a key's line, are read by :class:`so101sim.motion.reader.FileReader`, which it builds on.
 """
 
 from __future__ import annotations
 
 import os
-import reprlib
-from collections.abc import Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -73,9 +68,6 @@ import mujoco
 import numpy as np
 
 from ..errors import (
-    JointLimitError,
-    JointNameError,
-    JointValueError,
     MotionFileError,
     SettingError,
     UnreachableError,
@@ -83,17 +75,11 @@ from ..errors import (
 from ..model.load import arm_units, default_units
 from ..sim.profiles import MAX_MOVE_DURATION_S
 from ..units import (
-    DEG_PER_RAD,
     GRIPPER,
-    GRIPPER_INDEX,
     JOINT_NAMES,
-    STARTING_POSE,
-    ZERO_POSE,
     ArmUnits,
-    normalize_joint_name,
-    parse_pose,
 )
-from ..validation import MAX_DURATION_S, check_choice, check_duration
+from ..validation import MAX_DURATION_S
 from .lines import (
     MAX_FILE_BYTES,
     KeyLines,
@@ -101,7 +87,8 @@ from .lines import (
     load_toml,
     read_text_limited,
 )
-from .segments import PROFILES, Hold, Move, Segment
+from .reader import BUILTIN_POSES, FileReader, Where, show
+from .segments import Hold, Move, Segment
 from .tip import (
     TipPlanner,
     TipTarget,
@@ -110,10 +97,6 @@ from .tip import (
     unreachable_reason,
 )
 
-BUILTIN_POSES: dict[str, dict[str, float]] = {"rest": dict(STARTING_POSE), "zero": dict(ZERO_POSE)}
-"""Poses every motion file may use without defining them."""
-
-UNITS = ("deg", "rad")
 TOP_KEYS = ("description", "units", "profile", "start", "poses", "steps", "variants")
 # "variants": the ranges of `so101sim check --variants`, read by so101sim.preflight.robust
 STEP_KEYS = {
@@ -146,82 +129,16 @@ class MotionFile:
 
 
 # ---------------------------------------------------------------------------- the loader
-Where = tuple[Any, ...]
-"""A key path in the file (``("steps", 2, "duration")``): an error's line is looked up by it."""
-
-_CHECK_ERRORS = (JointNameError, JointValueError, SettingError)
-"""What the units module and :mod:`so101sim.validation` raise (JointLimitError is a
-JointValueError, DurationError a SettingError): the loader turns them into MotionFileError."""
-
-
-_REPR = reprlib.Repr()  # Python 3.11's Repr takes no arguments: set its limits
-_REPR.maxlevel, _REPR.maxstring, _REPR.maxother, _REPR.maxlong = 2, 60, 60, 60
-"""Values quoted in messages: a few levels and characters of them (a file may hold a string of
-a megabyte)."""
-
-
-def _show(value: Any) -> str:
-    return _REPR.repr(value)
-
-
-def _names(names: Mapping[str, Any], most: int = 20) -> str:
-    """Some of ``names``, sorted and quoted, for a message."""
-    shown = [n if len(n) <= 40 else n[:37] + "..." for n in sorted(names)[:most]]
-    more = f" and {len(names) - most} more" if len(names) > most else ""
-    return ", ".join(shown) + more
-
-
-def _file_reason(exc: Exception) -> str:
-    """The reason of a units or validation error, as said about a motion file."""
-    if isinstance(exc, JointLimitError):
-        # The API's advice ("pass clip=True") has no counterpart in a file: keep what was wrong.
-        return f"{exc.what}; choose a value inside them"
-    return str(exc)
-
-
-class _Loader:
-    """Reads the TOML data of one motion file part by part, giving every error its line.
-
-    Joint names, numbers and limits are checked by the units module (``units``, the model's
-    own), durations and profile names by :mod:`so101sim.validation`; their errors become
-    :class:`MotionFileError` at the line of the key they came from.
-    """
+class _Loader(FileReader):
+    """Reads one motion file's TOML data, its steps on top of what :class:`FileReader` reads,
+    every rule a motion file obeys with its file:line error, in the order a file is read."""
 
     def __init__(
         self, loc: KeyLines, path: str, units: ArmUnits, model: mujoco.MjModel | None = None
     ) -> None:
-        self.path = path
-        self.units = units
+        super().__init__(loc, path, units)
         self.planner = TipPlanner(model)  # tip moves, planned as the run will plan them
         self.tip_plans: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self.loc = loc
-        self.radians = False  # body joints given in radians (units = "rad")
-        lo, hi = units.limits
-        self.inside = (lo + hi) / 2  # a pose inside every limit: one joint is checked at a time
-        self.known: dict[str, dict[str, float]] = dict(BUILTIN_POSES)  # poses steps may name
-        self.default_profile = "linear"
-
-    # ------------------------------------------------------------------------ errors
-    def fail(self, where: Where, reason: str) -> MotionFileError:
-        return MotionFileError(self.path, self.loc.line(where), reason)
-
-    @contextmanager
-    def reasons(self, where: Where, prefix: str = "") -> Iterator[None]:
-        """Re-raise the units' and validation's errors as MotionFileError at ``where``'s line."""
-        try:
-            yield
-        except _CHECK_ERRORS as exc:
-            raise self.fail(where, prefix + _file_reason(exc)) from None
-
-    def check_keys(
-        self, table: Mapping[str, Any], allowed: tuple[str, ...], where: Where, what: str
-    ) -> None:
-        for key in table:
-            if key not in allowed:
-                raise self.fail(
-                    (*where, key),
-                    f"unknown key {_show(key)} in {what}; expected {', '.join(allowed)}",
-                )
 
     # ------------------------------------------------------------------------ the file
     def load(self, data: dict[str, Any]) -> MotionFile:
@@ -242,93 +159,6 @@ class _Loader:
             description=description,
             tip_plans=dict(self.tip_plans),
         )
-
-    def description(self, value: Any) -> str:
-        if not isinstance(value, str):
-            raise self.fail(("description",), "description must be a string")
-        return value
-
-    def units_name(self, value: Any) -> str:
-        if value not in UNITS:
-            raise self.fail(
-                ("units",),
-                f"unknown units {_show(value)}; expected 'deg' (default) or 'rad' for the body "
-                "joints (the gripper is always 0-100)",
-            )
-        return str(value)
-
-    def profile(self, value: Any, where: Where) -> str:
-        with self.reasons(where):
-            return check_choice(value, "profile", sorted(PROFILES))
-
-    def duration(self, value: Any, where: Where, what: str, maximum: float) -> float:
-        with self.reasons(where):
-            return check_duration(value, what, maximum=maximum)
-
-    # ------------------------------------------------------------------------ poses
-    def poses(self, table: Any) -> dict[str, dict[str, float]]:
-        if not isinstance(table, Mapping):
-            raise self.fail(("poses",), "poses must be a table of name = { joint = value }")
-        poses: dict[str, dict[str, float]] = {}
-        for name, value in table.items():
-            if name in BUILTIN_POSES:
-                raise self.fail(
-                    ("poses", name),
-                    f"pose {_show(name)} is built in and cannot be redefined; choose another name",
-                )
-            poses[name] = self.pose(value, ("poses", name))
-        return poses
-
-    def pose(self, value: Any, where: Where) -> dict[str, float]:
-        """A pose table, maybe partial: ``{joint: value}`` in arm units, JOINT_NAMES order.
-
-        The pose is checked by the units module one key more at a time, so that the first key
-        that makes it invalid (unknown, given twice, not a number, past a limit) gets the line.
-        """
-        if not isinstance(value, Mapping):
-            raise self.fail(
-                where,
-                f"a pose must be a table of joint = value, got {_show(value)}; e.g. "
-                "{ shoulder_lift = 10, gripper = 50 }",
-            )
-        given: dict[str, Any] = {}
-        out: dict[str, float] = {}
-        for key, raw in value.items():
-            given[key] = raw
-            with self.reasons((*where, key)):
-                name = normalize_joint_name(key)
-                out[name] = self.in_limits(name, parse_pose(given, partial=True)[name])
-        return {n: out[n] for n in JOINT_NAMES if n in out}
-
-    def in_limits(self, name: str, value: float) -> float:
-        """A joint's value from the file in arm units (radians converted), checked against the
-        joint's limits by the units (a value within LIMIT_TOLERANCE is clipped onto the limit).
-        """
-        i = JOINT_NAMES.index(name)
-        if self.radians and i != GRIPPER_INDEX:
-            value *= DEG_PER_RAD  # a body joint given in radians, to the arm's degrees
-        values = self.inside.copy()
-        values[i] = value
-        return float(self.units.check_limits(values)[i])
-
-    def named(self, name: str, where: Where) -> dict[str, float]:
-        if name not in self.known:
-            raise self.fail(
-                where,
-                f"unknown pose {_show(name)}; defined poses are {_names(self.known)} "
-                "(add it under [poses])",
-            )
-        return self.known[name]
-
-    def start(self, value: Any) -> dict[str, float]:
-        """The start pose, named or inline; it must give all six joints."""
-        if isinstance(value, str):
-            pose, prefix = self.named(value, ("start",)), f"start = {_show(value)}: "
-        else:
-            pose, prefix = self.pose(value, ("start",)), "start: "
-        with self.reasons(("start",), prefix):
-            parse_pose(pose)  # all six joints
-        return dict(pose)
 
     # ------------------------------------------------------------------------ steps
     def steps(self, data: Mapping[str, Any], start: dict[str, float]) -> list[tuple[Segment, int]]:
@@ -371,7 +201,7 @@ class _Loader:
     def step_kind(self, i: int, raw: Any, where: Where) -> str:
         """``"move"``, ``"hold"`` or ``"gripper"``, once the step's keys are checked."""
         if not isinstance(raw, Mapping):
-            raise self.fail(where, f"step {i + 1} must be a table, got {_show(raw)}")
+            raise self.fail(where, f"step {i + 1} must be a table, got {show(raw)}")
         kinds = [k for k in STEP_KEYS if k in raw]
         if len(kinds) != 1:
             raise self.fail(
@@ -385,7 +215,7 @@ class _Loader:
     def step_name(self, raw: Mapping[str, Any], where: Where) -> str | None:
         name = raw.get("name")
         if name is not None and not isinstance(name, str):
-            raise self.fail((*where, "name"), f"name must be a string, got {_show(name)}")
+            raise self.fail((*where, "name"), f"name must be a string, got {show(name)}")
         return name
 
     def tip_move(

@@ -28,6 +28,7 @@ import os
 import re
 import stat
 import tomllib
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -145,69 +146,93 @@ class KeyLines:
         raise _Stop
 
     def _walk(self, text: str) -> None:
-        """States: ``line`` (a statement may start), ``key`` (a key's parts, of a header when
-        ``header`` is "[" or "[["), ``value``, ``rest`` (up to the end of the line)."""
-        table: tuple[Any, ...] = ()
-        arrays: dict[tuple[Any, ...], int] = {}  # array of tables -> its last index
-        stack: list[list[Any]] = []  # open brackets of a value: [bracket, path, elements]
-        state, header, key, key_at = "line", "", [], 0
-        value: tuple[Any, ...] = ()  # the path of the value being read
-        element_next = False  # the next token starts an element of the innermost array
+        """One pass over the tokens; ``scan.state`` says what a token may be: ``line`` (a
+        statement may start), ``key`` (a key's parts, of a header when ``scan.header`` is "["
+        or "[["), ``value``, ``rest`` (up to the end of the line)."""
+        scan = _Scan()
         for m in _TOKENS.finditer(text):
             kind, token, pos = m.lastgroup, m.group(), m.start()
-            if kind == "skip" or (kind == "newline" and stack):
+            if kind == "skip" or (kind == "newline" and scan.stack):
                 continue
             if kind == "newline":
-                state = "line"
-            elif state == "line" and token in ("[", "[["):
-                state, header, key, key_at = "key", token, [], pos
-            elif state in ("line", "key"):
-                if state == "line":
-                    state, header, key, key_at = "key", "", [], pos
-                if kind in ("bare", "string"):
-                    key += [p for p in token.split(".") if p] if kind == "bare" else [_key(token)]
-                    if len(key) > self.max_nesting:
-                        self._found(tuple(key), pos)
-                elif token == "=" and not header:
-                    value = (*(stack[-1][1] if stack else table), *key)
-                    self._found(value, key_at)
-                    state = "value"
-                elif token in ("]", "]]") and header:
-                    table = _table_path(key, header == "[[", arrays)
-                    self._found(table, key_at)
-                    state = "rest"
-                elif token == "}" and stack:  # an empty inline table
-                    stack.pop()
-                    state = "value" if stack else "rest"
-            elif state == "value":
+                scan.state = "line"
+            elif scan.state == "line" and token in ("[", "[["):
+                scan.begin_key(token, pos)
+            elif scan.state in ("line", "key"):
+                self._key_token(scan, kind or "", token, pos)
+            elif scan.state == "value":
                 for mark in token if token in ("[[", "]]") else (token,):
-                    if element_next and mark not in ("]", ","):
-                        value = (*stack[-1][1], stack[-1][2])
-                        self._found(value, pos)
-                        element_next = False
-                    if mark in ("[", "{"):
-                        if len(value) >= self.max_nesting and mark == "[":
-                            self._found((*value, 0), pos)  # too deep: stops here
-                        stack.append([mark, value, 0])
-                        element_next = mark == "["
-                        if mark == "{":
-                            state, header, key, key_at = "key", "", [], pos
-                    elif mark in ("]", "}") and stack:
-                        stack.pop()
-                        element_next = False
-                    elif mark == "," and stack:
-                        stack[-1][2] += 1
-                        element_next = stack[-1][0] == "["
-                        if stack[-1][0] == "{":
-                            state, header, key, key_at = "key", "", [], pos
-                    elif kind == "bare" and len(token) > MAX_TOKEN:
-                        self._stop(
-                            pos,
-                            f"a value {len(token)} characters long; expected a "
-                            f"number, true/false or a date of at most {MAX_TOKEN} characters",
-                        )
-                    if not stack and state == "value":
-                        state = "rest"
+                    self._value_mark(scan, kind or "", mark, pos)
+                    if not scan.stack and scan.state == "value":
+                        scan.state = "rest"
+
+    def _key_token(self, scan: _Scan, kind: str, token: str, pos: int) -> None:
+        """A token of a key (a statement's, a header's or an inline table's)."""
+        if scan.state == "line":
+            scan.begin_key("", pos)
+        if kind in ("bare", "string"):
+            scan.key += [p for p in token.split(".") if p] if kind == "bare" else [_key(token)]
+            if len(scan.key) > self.max_nesting:
+                self._found(tuple(scan.key), pos)
+        elif token == "=" and not scan.header:
+            scan.value = (*(scan.stack[-1][1] if scan.stack else scan.table), *scan.key)
+            self._found(scan.value, scan.key_at)
+            scan.state = "value"
+        elif token in ("]", "]]") and scan.header:
+            scan.table = _table_path(scan.key, scan.header == "[[", scan.arrays)
+            self._found(scan.table, scan.key_at)
+            scan.state = "rest"
+        elif token == "}" and scan.stack:  # an empty inline table
+            scan.stack.pop()
+            scan.state = "value" if scan.stack else "rest"
+
+    def _value_mark(self, scan: _Scan, kind: str, mark: str, pos: int) -> None:
+        """A token of a value (a bracket of ``[[``/``]]`` at a time)."""
+        if scan.element_next and mark not in ("]", ","):
+            scan.value = (*scan.stack[-1][1], scan.stack[-1][2])
+            self._found(scan.value, pos)
+            scan.element_next = False
+        if mark in ("[", "{"):
+            if len(scan.value) >= self.max_nesting and mark == "[":
+                self._found((*scan.value, 0), pos)  # too deep: stops here
+            scan.stack.append([mark, scan.value, 0])
+            scan.element_next = mark == "["
+            if mark == "{":
+                scan.begin_key("", pos)
+        elif mark in ("]", "}") and scan.stack:
+            scan.stack.pop()
+            scan.element_next = False
+        elif mark == "," and scan.stack:
+            scan.stack[-1][2] += 1
+            scan.element_next = scan.stack[-1][0] == "["
+            if scan.stack[-1][0] == "{":
+                scan.begin_key("", pos)
+        elif kind == "bare" and len(mark) > MAX_TOKEN:
+            self._stop(
+                pos,
+                f"a value {len(mark)} characters long; expected a number, true/false or a "
+                f"date of at most {MAX_TOKEN} characters",
+            )
+
+
+@dataclass
+class _Scan:
+    """Where the pass over a file's tokens is: the current table, the arrays of tables seen,
+    the open brackets of a value (``[bracket, path, elements]``), the key being read, the path
+    of the value being read, and whether the next token starts an array's element."""
+
+    state: str = "line"
+    header: str = ""
+    key: list[str] = field(default_factory=list)
+    key_at: int = 0
+    table: tuple[Any, ...] = ()
+    arrays: dict[tuple[Any, ...], int] = field(default_factory=dict)
+    stack: list[list[Any]] = field(default_factory=list)
+    value: tuple[Any, ...] = ()
+    element_next: bool = False
+
+    def begin_key(self, header: str, pos: int) -> None:
+        self.state, self.header, self.key, self.key_at = "key", header, [], pos
 
 
 def _key(quoted: str) -> str:

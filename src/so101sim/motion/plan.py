@@ -21,10 +21,11 @@ import numpy as np
 
 from ..errors import DurationError, SettingError
 from ..model.load import arm_units
-from ..sim.profiles import SHAPES, get_profile, plan, steps_for
+from ..sim.limited import LimitedProfile, ShortMove, short_move, too_short
+from ..sim.profiles import MAX_MOVE_DURATION_S, SHAPES, get_profile, plan, steps_for
 from ..sim.simulation import TRACE_AUTO_STEPS, Observer, Simulation
 from ..units import Pose
-from ..validation import MAX_DURATION_S, check_duration
+from ..validation import MAX_DURATION_S
 from .moves import Hold, Move, RunResult, Segment
 
 log = logging.getLogger(__name__)
@@ -77,6 +78,8 @@ class PlannedMotion:
     model: mujoco.MjModel
     start: np.ndarray
     segments: tuple[PlannedSegment, ...]
+    # the ``limited`` moves too short for the joint limits (stretched), from their planned start
+    stretched: tuple[ShortMove, ...] = ()
 
     @property
     def steps(self) -> tuple[Segment, ...]:
@@ -102,18 +105,28 @@ def plan_segments(
     *,
     clip: bool = False,
     known: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
+    strict: bool = False,
 ) -> PlannedMotion:
     """Plan ``segments`` from the commanded pose ``start`` (a pose, or an array in arm units),
-    checking every target, profile and duration. ``known``: tip moves already planned (segment
-    index -> ``(start, targets)``, as the motion-file loader planned them), used when they
-    start where this plan has them start, so a tip line is solved once per run.
+    checking every target, profile and duration: THE motion planner and checker (a run, the
+    preflight, the robust preflight and the framing all use it). ``known``: tip moves already
+    planned (segment index -> ``(start, targets)``, as the motion-file loader planned them),
+    used when they start where this plan has them start, so a tip line is solved once per run.
+
+    Each ``limited`` move is checked against the joint limits from the start this plan gives
+    it (after tip moves too): one too short is stretched (listed in
+    :attr:`PlannedMotion.stretched`, with a logged warning) or, with ``strict``, refused.
 
     Raises:
         DurationError, JointNameError, JointValueError, JointLimitError, SettingError,
         UnreachableError: a segment that cannot run, before anything moves.
+        TrajectoryLimitError: with ``strict``, a ``limited`` move too short for the limits
+            (the first named, after the whole motion was checked).
     """
     units = arm_units(model)
-    total = sum(check_duration(seg.duration, f"{seg.phase} duration") for seg in segments)
+    dt = float(model.opt.timestep)
+    counts = [_steps(seg, dt) for seg in segments]  # each duration checked here, once
+    total = sum(float(seg.duration) for seg in segments)
     if total > MAX_DURATION_S:
         raise DurationError(
             f"the motion lasts {total:g} s in all; expected at most {MAX_DURATION_S:g} s "
@@ -125,11 +138,10 @@ def plan_segments(
     begin = sim.commanded_array()
     known = known or {}
     planned: list[PlannedSegment] = []
-    dt = sim.timestep
-    for i, seg in enumerate(segments):
+    stretched: list[ShortMove] = []
+    for i, (seg, n) in enumerate(zip(segments, counts, strict=True)):
         current = sim.commanded_array()
         if isinstance(seg, Hold):
-            n = steps_for(seg.duration, dt)
             rows = np.broadcast_to(current, (n, len(current)))
             planned.append(PlannedSegment(seg, current, rows, n))
             continue
@@ -142,11 +154,24 @@ def plan_segments(
             else:
                 _, targets = sim.plan_tip_move(
                     seg.tip, seg.duration, pitch=seg.pitch, roll=seg.roll, path=seg.path,
-                    profile=seg.profile,
+                    shape=seg.profile,
                 )  # fmt: skip
             entry = PlannedSegment(seg, current, targets, len(targets))
+            prof = get_profile(seg.profile, units)
+            if seg.path == "joint" and isinstance(prof, LimitedProfile):  # to the IK's goal
+                short = short_move(prof, i, seg.phase, current, targets[-1], n, dt)
+                stretched += [short] if short is not None else []
         else:
-            _, targets = sim.plan_move(seg.target, seg.duration, profile=seg.profile, clip=clip)
+            prof = get_profile(seg.profile, units)
+            if isinstance(prof, LimitedProfile):
+                goal = units.pose_to_array(seg.target, clip=clip)  # type: ignore[arg-type]
+                short = short_move(prof, i, seg.phase, current, goal, n, dt)
+                if short is not None:
+                    stretched.append(short)
+                    if strict:  # refused once the whole motion is checked: go on from its goal
+                        sim.command_array(goal, check=False)
+                        continue
+            _, targets = sim.plan_move(seg.target, seg.duration, shape=seg.profile, clip=clip)
             if len(targets) > _KEEP_ROWS and isinstance(seg.profile, str) and seg.profile in SHAPES:
                 recipe = (targets[-1].copy(), get_profile(seg.profile), dt)
                 entry = PlannedSegment(seg, current, None, len(targets), recipe)
@@ -154,7 +179,15 @@ def plan_segments(
                 entry = PlannedSegment(seg, current, targets, len(targets))
         sim.command_array(entry.end, check=False)
         planned.append(entry)
-    return PlannedMotion(model, begin, tuple(planned))
+    if strict and stretched:
+        raise too_short(stretched, dt)
+    return PlannedMotion(model, begin, tuple(planned), tuple(stretched))
+
+
+def _steps(seg: Segment, dt: float) -> int:
+    """The physics steps of ``seg``: its duration checked (once, for the whole planner)."""
+    maximum = MAX_MOVE_DURATION_S if isinstance(seg, Move) else MAX_DURATION_S
+    return steps_for(seg.duration, dt, maximum=maximum, what=f"{seg.phase} duration")
 
 
 def run_plan(

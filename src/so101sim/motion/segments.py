@@ -13,17 +13,15 @@ are thin wrappers over :meth:`Simulation.attach`, for handout-style code that ho
 from __future__ import annotations
 
 import logging
+import warnings
 from collections.abc import Sequence
 
 import mujoco
 import numpy as np
 
-from ..errors import DurationError
-from ..model.load import arm_units
 from ..sim.profiles import PROFILES, Profile, get_profile, steps_for
 from ..sim.simulation import Observer, SegmentResult, Simulation
 from ..units import STARTING_POSE, Pose
-from ..validation import MAX_DURATION_S, check_duration
 from .moves import LAB_MOTION, Hold, Move, RunResult, Segment
 from .plan import plan_segments, run_plan
 
@@ -42,7 +40,7 @@ def plan_move(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Validate a move and compute all its targets: ``(start, targets)`` in arm units
     (:meth:`Simulation.plan_move`). Nothing moves."""
-    return Simulation.attach(m, d).plan_move(target, duration, profile=profile, clip=clip)
+    return Simulation.attach(m, d).plan_move(target, duration, shape=profile, clip=clip)
 
 
 def move(
@@ -59,7 +57,7 @@ def move(
     """Move the arm from its last commanded target to ``target`` over ``duration`` simulated
     seconds, then return what happened (:meth:`Simulation.move_to`)."""
     return Simulation.attach(m, d).move_to(
-        target, duration, profile=profile, observers=observers, clip=clip, phase=phase
+        target, duration, shape=profile, observers=observers, clip=clip, phase=phase
     )
 
 
@@ -86,34 +84,18 @@ def validate_segments(
     clip: bool = False,
     start: np.ndarray | None = None,
 ) -> None:
-    """Check every segment's target, profile and duration before anything moves. With
-    ``start`` (the commanded pose, arm units), tip moves are planned in full from where the
-    segments before them end, so a point out of reach is found before the first one runs."""
-    units = arm_units(m)
-    current = None if start is None else np.asarray(start, dtype=float)
-    total = sum(check_duration(seg.duration, f"{seg.phase} duration") for seg in segments)
-    if total > MAX_DURATION_S:
-        raise DurationError(
-            f"the motion lasts {total:g} s in all; expected at most {MAX_DURATION_S:g} s "
-            "(one day of simulated time)"
-        )
-    for seg in segments:
-        if not isinstance(seg, Move):
-            continue
-        if seg.tip is None:
-            goal = units.pose_to_array(seg.target, clip=clip)  # type: ignore[arg-type]
-            get_profile(seg.profile)
-        elif current is not None:
-            sim = Simulation(m, initial_pose=None)  # a scratch one: planning only, no stepping
-            sim.command_array(current, check=False)
-            _, targets = sim.plan_tip_move(
-                seg.tip, seg.duration, pitch=seg.pitch, roll=seg.roll, path=seg.path,
-                profile=seg.profile,
-            )  # fmt: skip
-            goal = targets[-1]
-        else:
-            continue
-        current = goal
+    """Deprecated (kept for one release): :func:`~so101sim.motion.plan.plan_segments` plans
+    and checks a motion, every segment (tip moves and the joint limits of ``limited`` moves
+    included) from the start it plans for it; this calls it from ``start`` (the rest pose by
+    default) and drops the plan."""
+    warnings.warn(
+        "validate_segments is deprecated; use so101sim.motion.plan_segments(model, segments, "
+        "start), which plans and checks the motion once",
+        DeprecationWarning,
+        stacklevel=2,
+    )
+    first = STARTING_POSE if start is None else np.asarray(start, dtype=float)
+    plan_segments(m, segments, first, clip=clip)
 
 
 def commanded_path(

@@ -167,7 +167,7 @@ class TipPlanner:
             pitch=move.pitch,
             roll=move.roll,
             path=move.path,
-            profile=move.profile,
+            shape=move.profile,
         )
         self.last = (start, targets)
         return start, targets

@@ -42,8 +42,9 @@ The default limit margin is 1°: the shipped rest pose holds ``shoulder_lift`` a
 its −100° limit, so the lab motion passes; a target at a limit, or within a degree of it, fails.
 (A target beyond a limit never gets this far: the motion-file loader refuses it.)
 
-The run is the same physics as ``so101sim run`` (same steps, bit for bit), observed after every
-physics step, so it is slower than a plain run.
+The run is the same physics as ``so101sim run`` (same steps, bit for bit), stepped in whole
+blocks in C; every physics step's figures are derived from what the blocks recorded
+(:mod:`so101sim.preflight.states`), so a check costs about what a plain run costs.
 
 Three parts: :mod:`so101sim.preflight.measure` runs the motion and measures it,
 :mod:`so101sim.preflight.judge` compares the figures with the :class:`Thresholds` once, and this
@@ -53,12 +54,13 @@ the public entry points, :func:`preflight` and :func:`check_motion_file`.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import mujoco
+import numpy as np
 
 from ..model.arm import ArmLike
 from ..model.load import arm_units, load_model
@@ -116,6 +118,7 @@ def preflight(
     lines: Sequence[int] = (),
     strict: bool = False,
     arm: ArmLike = None,
+    known: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> PreflightReport:
     """Simulate ``steps`` headless from ``start`` (at rest) and judge them.
 
@@ -125,6 +128,7 @@ def preflight(
 
     ``lines`` (the motion file's line of each step) only label the report. With ``strict``,
     a ``limited`` move shorter than the joint limits allow raises TrajectoryLimitError first.
+    ``known``: tip moves already planned on ``model`` (``MotionFile.tip_plans``).
 
     Raises:
         So101SimError: an invalid step (bad target, duration, profile), or strict refusal.
@@ -132,7 +136,13 @@ def preflight(
     th = thresholds if thresholds is not None else Thresholds()
     m = model if isinstance(model, mujoco.MjModel) else load_model(model, arm=arm)
     measured = measure(
-        steps, start=start, model=m, saturation_level=th.max_effort, lines=lines, strict=strict
+        steps,
+        start=start,
+        model=m,
+        saturation_level=th.max_effort,
+        lines=lines,
+        strict=strict,
+        known=known,
     )
     findings = judge(measured, th)
     return PreflightReport(
@@ -163,6 +173,7 @@ def check_motion_file(
         thresholds=thresholds,
         lines=motion.lines,
         strict=strict,
+        known=motion.tip_plans,  # the loader's tip lines, planned on m: not solved again
     )
 
 

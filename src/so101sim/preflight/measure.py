@@ -1,7 +1,11 @@
 """Preflight, first part: run a motion headless and measure it, per step and per joint.
 
-:func:`measure` runs the motion exactly as ``so101sim run`` does (same steps, bit for bit) with
-an observer called after every physics step, and returns :class:`Measurements`: for every step
+:func:`measure` runs the motion exactly as ``so101sim run`` does (same steps, bit for bit), in
+whole blocks in C through the stepping kernel, and derives what an observer called after every
+physics step would read from what the blocks recorded
+(:class:`~so101sim.preflight.states.StateRecorder`: the same samples, bit for bit, as
+:class:`StepRecorder`, which watches a model they cannot be derived for after every step).
+It returns :class:`Measurements`: for every step
 and joint the closest approach to a limit, the peak effort, the longest saturation and the peak
 tracking error, and every contact. Nothing here judges: :mod:`so101sim.preflight.judge`
 compares the figures with the thresholds.
@@ -10,22 +14,20 @@ compares the figures with the thresholds.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
 from ..kinematics import line_deviation, tip_pose
 from ..model.load import arm_index, arm_units
-from ..motion.segments import Move, Segment, SegmentResult, run_motion
-from ..sim.limited import ShortMove, check_limited_moves
+from ..motion.plan import plan_segments, run_plan
+from ..motion.segments import Move, Segment, SegmentResult
+from ..sim.limited import ShortMove
 from ..sim.simulation import Observer, Simulation
 from ..units import JOINT_NAMES, Pose
-
-if TYPE_CHECKING:
-    from .states import StateRecorder
+from .states import StateRecorder, derivable
 
 _EPS_T = 1e-9  # s: slack when comparing simulated times with a step's end
 
@@ -120,20 +122,23 @@ def measure(
     saturation_level: float,
     lines: Sequence[int] = (),
     strict: bool = False,
+    known: Mapping[int, tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> Measurements:
     """Run ``steps`` headless from ``start`` (at rest) and measure every step.
 
     ``saturation_level`` is the effort (fraction of the force limit) above which a joint
     counts as saturated; ``lines`` only label the steps. With ``strict``, a ``limited`` move
     too short for the joint limits raises TrajectoryLimitError before anything moves.
+    ``known``: tip moves already planned on ``model`` (``MotionFile.tip_plans``), not solved
+    again.
     """
     sim = Simulation(model, initial_pose=start)
-    stretched = check_limited_moves(
-        sim.commanded_array(), steps, sim.timestep, units=sim.units, strict=strict
-    )
-    rec = StepRecorder(model)
-    result = run_motion(model, sim.data, steps, observers=[rec], trace=True)
-    return collect(model, steps, result.segments, rec, saturation_level, lines, stretched)
+    plan = plan_segments(model, steps, sim.commanded_array(), strict=strict, known=known)
+    # whole blocks stepped in C, the samples derived from what they recorded (bit for bit the
+    # step recorder's); a model where they cannot be is watched after every step
+    rec = StateRecorder(model) if derivable(model) else StepRecorder(model)
+    result = run_plan(sim, plan, observers=[rec], trace=True)
+    return collect(model, steps, result.segments, rec, saturation_level, lines, plan.stretched)
 
 
 def collect(

@@ -13,6 +13,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import SettingError
+from ..recording.paths import check_output_path, write_atomically
+from ..recording.plot import PLOT_SUFFIXES
 from .check import describe
 from .judge import Thresholds
 from .rollout import VariantOutcome
@@ -216,20 +218,15 @@ def format_variants(report: VariantsReport) -> str:
 def check_plot_path(path: str | Path, *, force: bool = False) -> Path:
     """Check that the histogram can be written to ``path`` (before anything runs): an
     existing file only with ``force``."""
-    from ..recording.paths import check_output_path  # imported here: only plots need it
-    from ..recording.plot import PLOT_SUFFIXES
-
     return check_output_path(path, force=force, what="plot", suffixes=PLOT_SUFFIXES)
 
 
 def plot_variants(report: VariantsReport, path: str | Path, *, force: bool = False) -> Path:
     """Histograms of every variant's peak tracking error (body joints, degrees) and longest
     saturation (ms), with the thresholds; written with matplotlib's Agg backend."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg  # only to keep start-up fast
+    # matplotlib imported here, only to keep start-up fast: only a histogram needs it
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
-
-    from ..recording.paths import check_output_path, write_atomically
-    from ..recording.plot import PLOT_SUFFIXES
 
     p = check_output_path(path, force=force, what="plot", suffixes=PLOT_SUFFIXES)
     if not report.outcomes:
@@ -253,7 +250,7 @@ def plot_variants(report: VariantsReport, path: str | Path, *, force: bool = Fal
         f"{len(report.outcomes)} variants (seed {report.job.seed}): {report.fraction:.1%} PASS"
     )
     fmt = p.suffix.lstrip(".").lower()
-    return write_atomically(p, lambda tmp: fig.savefig(tmp, format=fmt), what="plot")
+    return write_atomically(p, lambda tmp: fig.savefig(tmp, format=fmt), what="plot", force=force)
 
 
 __all__ = [

@@ -21,7 +21,7 @@ from typing import Any
 
 from ..model.arm import ArmLike, load_profile, profile_from_toml, profile_toml
 from ..model.load import arm_units, load_model, scene_path
-from ..motion.file import MotionFile, parse_motion
+from ..motion.file import MotionFile, load_motion, parse_motion
 from ..motion.lines import MAX_FILE_BYTES, load_toml, read_text_limited
 from ..validation import check_count
 from .judge import Thresholds
@@ -75,8 +75,6 @@ class VariantJob:
 
 def read_motion(path: str | Path) -> tuple[str, dict[str, Any], Any]:
     """A motion file's text, its TOML data and key lines (errors with file and line)."""
-    from ..motion.file import load_motion
-
     load_motion(path)  # every check of the motion itself, with its messages
     text = read_text_limited(Path(path), MAX_FILE_BYTES)
     data, loc = load_toml(text, str(path))

@@ -24,19 +24,19 @@ measure each as the single check does.
 
 The figures are then judged by :func:`so101sim.preflight.judge.judge`, the single check's own.
 
-(About 440 lines: the block-by-block reduction mirrors :mod:`so101sim.preflight.measure` figure
-for figure, and is kept next to the rollout loop that feeds it.)
-
-Long on purpose: one variant's run (the worker, its per-step accumulator and the contact
-namer) is one algorithm, each part written against the others' arrays.
+The block-by-block reduction, figure for figure the single check's
+(:mod:`so101sim.preflight.measure`), is :mod:`so101sim.preflight.accumulate`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import copy
+import logging
 import math
+import signal
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,18 +44,22 @@ import mujoco
 import numpy as np
 
 from ..errors import ModelError
+from ..exitgate import mujoco_call
 from ..model.arm import ArmLike, fill_delay_history
 from ..model.build import Addition, build, recipe
 from ..model.load import arm_index, arm_units
 from ..motion.plan import plan_segments
 from ..motion.segments import Hold, Segment
-from ..sim.limited import ShortMove, check_limited_moves
+from ..sim.limited import ShortMove
 from ..sim.simulation import Simulation
 from ..sim.stepping import Observer, advance, step_block
-from ..units import GRIPPER, JOINT_NAMES, ArmUnits, Pose
+from ..units import GRIPPER, JOINT_NAMES, Pose
+from .accumulate import Accumulator, run_lengths
 from .judge import Finding, Thresholds, judge
-from .measure import Contact, JointCheck, Measurements, StepCheck
+from .measure import Contact, Measurements
 from .variants import Variant, apply_variant
+
+log = logging.getLogger(__name__)
 
 BLOCK = 4096
 """Steps rolled out per call: at most this many states per variant are held at once."""
@@ -92,11 +96,9 @@ def plan_motion(
 ) -> MotionPlan:
     """Plan ``steps`` from ``start`` (checked as the single check checks them)."""
     sim = Simulation(model, initial_pose=start)
-    stretched = check_limited_moves(
-        sim.commanded_array(), steps, sim.timestep, units=sim.units, strict=strict
-    )
     units = sim.units
-    planned = plan_segments(model, steps, sim.commanded_array())  # once, every segment checked
+    # once, every segment checked (with ``strict``, a limited move too short refused)
+    planned = plan_segments(model, steps, sim.commanded_array(), strict=strict)
     rows = [np.asarray(p.targets) for p in planned.segments]
     sizes = [len(r) for r in rows]
     return MotionPlan(
@@ -106,7 +108,7 @@ def plan_motion(
         targets=units.to_radians(np.vstack(rows)),
         bounds=np.concatenate([[0], np.cumsum(sizes)]).astype(int),
         start=units.to_radians(units.pose_to_array(start)),
-        stretched=tuple(stretched),
+        stretched=planned.stretched,
     )
 
 
@@ -163,114 +165,19 @@ class VariantOutcome:
     touched: bool
 
 
-class _Accumulator:
-    """Per step of the motion and joint, the single check's figures, block by block."""
-
-    def __init__(self, n: int, units: ArmUnits) -> None:
-        lo, hi = units.limits
-        self.lo, self.hi = lo, hi
-        self.to_lower = np.full((n, 6), np.inf)
-        self.to_upper = np.full((n, 6), np.inf)
-        self.peak = np.zeros((n, 6))
-        self.longest = np.zeros((n, 6), dtype=int)
-        self.sat_end = np.zeros((n, 6))
-        self.track = np.zeros((n, 6))
-        self.track_at = np.zeros((n, 6))
-        self.contact_t = np.full(n, np.nan)
-        self.depth = np.zeros(n)
-        self.ends = np.zeros(n)
-        self.starts = np.zeros(n)
-        self.run = np.zeros(6, dtype=int)
-        self.seen_force = np.zeros((n, 6), dtype=bool)  # the step has seen a sample
-        self.seen_motion = np.zeros((n, 6), dtype=bool)
-
-    def begin(self, j: int, start: np.ndarray) -> None:
-        """Step ``j`` starts from the commanded target ``start`` (counts for its margin)."""
-        self.to_lower[j] = start - self.lo
-        self.to_upper[j] = self.hi - start
-
-    def add_forces(self, j: int, t, effort, runs, found, dist) -> None:
-        """What the single check's step recorder sees in step ``j``: effort, run lengths of
-        saturation, contact count and smallest distance at the times ``t``."""
-        new = ~self.seen_force[j]
-        self.peak[j] = np.maximum(self.peak[j], effort.max(axis=0))
-        k = runs.argmax(axis=0)
-        best = runs[k, range(6)]
-        better = (best > self.longest[j]) | new
-        self.longest[j] = np.where(better, best, self.longest[j])
-        self.sat_end[j] = np.where(better, t[k], self.sat_end[j])
-        self.seen_force[j] = True
-        touching = found > 0
-        if touching.any():
-            if np.isnan(self.contact_t[j]):
-                self.contact_t[j] = t[touching.argmax()]
-            self.depth[j] = max(self.depth[j], float(-dist[touching].min()))
-
-    def add_motion(self, j: int, t, cmd, meas) -> None:
-        """Step ``j``'s commanded and measured poses (arm units) at the times ``t``."""
-        for rows in (cmd, meas):
-            self.to_lower[j] = np.minimum(self.to_lower[j], (rows - self.lo).min(axis=0))
-            self.to_upper[j] = np.minimum(self.to_upper[j], (self.hi - rows).min(axis=0))
-        err = np.abs(cmd - meas)
-        k = err.argmax(axis=0)
-        best = err[k, range(6)]
-        better = (best > self.track[j]) | ~self.seen_motion[j]
-        self.track[j] = np.where(better, best, self.track[j])
-        self.track_at[j] = np.where(better, t[k], self.track_at[j])
-        self.seen_motion[j] = True
-        self.ends[j] = t[-1]
-
-    def steps(self, plan: MotionPlan, dt: float) -> tuple[StepCheck, ...]:
-        out = []
-        for j in range(len(plan.phases)):
-            longest = self.longest[j] * dt
-            sat_start = np.maximum(self.sat_end[j] - longest, self.starts[j])
-            joints = {
-                name: JointCheck(
-                    limit_margin=float(min(self.to_lower[j, i], self.to_upper[j, i])),
-                    limit_side="lower" if self.to_lower[j, i] <= self.to_upper[j, i] else "upper",
-                    peak_effort=float(self.peak[j, i]),
-                    saturated=float(longest[i]),
-                    peak_tracking_error=float(self.track[j, i]),
-                    saturation_time=float(sat_start[i]),
-                    peak_tracking_time=float(self.track_at[j, i]),
-                )
-                for i, name in enumerate(JOINT_NAMES)
-            }
-            contacts = ()
-            if not np.isnan(self.contact_t[j]):
-                depth = max(0.0, float(self.depth[j]))
-                contacts = (Contact("arm", "(see the replay)", float(self.contact_t[j]), depth),)
-            out.append(
-                StepCheck(
-                    index=j + 1,
-                    phase=plan.phases[j],
-                    kind=plan.kinds[j],
-                    line=plan.lines[j],
-                    start_time=float(self.starts[j]),
-                    end_time=float(self.ends[j]),
-                    joints=joints,
-                    contacts=contacts,
-                )
-            )
-        return tuple(out)
-
-
-def _run_lengths(above: np.ndarray, carry: np.ndarray) -> np.ndarray:
-    """Per sample and column: consecutive True samples up to it, counting ``carry`` True
-    samples before the block."""
-    idx = np.arange(1, len(above) + 1)[:, None]
-    last_false = np.maximum.accumulate(np.where(above, 0, idx), axis=0)
-    runs = idx - last_false
-    return np.where(last_false == 0, runs + carry, runs)
-
-
 class Worker:
     """One thread's model copy and data (the kernel keeps a rollout runner per thread); runs
     variants one at a time."""
 
-    def __init__(self, base: mujoco.MjModel, plan: MotionPlan, thresholds: Thresholds) -> None:
+    def __init__(
+        self,
+        base: mujoco.MjModel,
+        plan: MotionPlan,
+        thresholds: Thresholds,
+        stop: Callable[[], bool] | None = None,
+    ) -> None:
         self.base, self.plan, self.th = base, plan, thresholds
+        self.stop = stop  # asked before each block: True ends the run (_Stopped)
         self.m = copy.copy(base)
         self.d = mujoco.MjData(self.m)
         self.idx = arm_index(base)
@@ -303,6 +210,8 @@ class Worker:
         m, d, idx = self.m, self.d, self.idx
         targets, n = self.plan.targets, len(self.plan.targets)
         for a in range(0, n, BLOCK):
+            if self.stop is not None and self.stop():
+                raise _Stopped
             k = min(BLOCK, n - a)
             ctrl = np.zeros((k, m.nu))
             ctrl[:, idx.actuator] = targets[a : a + k] - offset
@@ -315,12 +224,12 @@ class Worker:
         measured = self.measure(v)
         return _outcome(v.index, measured, judge(measured, self.th))
 
-    def _forces_of(self, acc: _Accumulator, limit: np.ndarray):
+    def _forces_of(self, acc: Accumulator, limit: np.ndarray):
         """A function adding sensor rows of step j to ``acc`` (run lengths carried)."""
 
         def add(j: int, t: np.ndarray, sens: np.ndarray) -> None:
             effort = np.abs(sens[:, self.force_adr]) / limit
-            runs = _run_lengths(effort > self.th.max_effort, acc.run)
+            runs = run_lengths(effort > self.th.max_effort, acc.run)
             acc.run = runs[-1]
             found, dist = sens[:, self.contact_adr], sens[:, self.contact_adr + 1]
             acc.add_forces(j, t, effort, runs, found, dist)
@@ -331,9 +240,10 @@ class Worker:
         """Roll ``v`` out and measure it as the single check does (contacts unnamed)."""
         plan, units, dt = self.plan, self.units, self.base.opt.timestep
         start = units.from_radians(plan.start - np.radians(v.zero_offset_deg))
-        acc = _Accumulator(len(plan.phases), units)
+        acc = Accumulator(len(plan.phases), units)
         last_cmd = start  # the commanded target before the first step
-        offset, s0 = self._start(v)  # writes the variant into the model: read it after
+        with mujoco_call():  # refused once the interpreter exits (exitgate)
+            offset, s0 = self._start(v)  # writes the variant into the model: read it after
         limit = np.abs(self.m.actuator_forcerange[self.idx.actuator, 1])
         force_of = self._forces_of(acc, limit)
         # the single check's recorder also reads the forces and contacts before the first step
@@ -353,7 +263,8 @@ class Worker:
                 force_of(j, t[sl], sens[sl])
                 acc.add_motion(j, t[sl], cmd[sl], meas[sl])
             prev_t, last_cmd = float(t[-1]), cmd[-1]
-        return Measurements(acc.steps(plan, dt), units.limits_dict(), plan.stretched)
+        steps = acc.steps(plan.phases, plan.kinds, plan.lines, dt)
+        return Measurements(steps, units.limits_dict(), plan.stretched)
 
 
 def _outcome(index: int, measured: Measurements, findings: tuple[Finding, ...]) -> VariantOutcome:
@@ -387,29 +298,95 @@ def run_variants(
     errors: list[BaseException] = []
 
     def work() -> None:
+        worker = None
         try:
-            worker = Worker(base, plan, thresholds)
+            with mujoco_call():  # the worker's own model and data are made in the gate too
+                worker = Worker(base, plan, thresholds, stop=lambda: bool(errors))
             while not errors:
                 with lock:
                     i = next(todo, None)
                 if i is None:
                     return
                 results[i] = worker.run(variants[i])
+        except _Stopped:
+            return
         except BaseException as exc:  # re-raised on the calling thread
             errors.append(exc)
+        finally:
+            worker = None  # its MjData freed now, while the caller waits (_run_threads)
 
     count = max(1, min(threads, len(variants)))
+    log.info("rolling out %d variants on %d threads", len(variants), count)
     if count == 1:
         work()
     else:
-        pool = [threading.Thread(target=work, daemon=True) for _ in range(count)]
-        for th in pool:
-            th.start()
-        for th in pool:
-            th.join()
+        _run_threads(work, count, errors)
     if errors:
         raise errors[0]
     return [r for r in results if r is not None]
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """Hold SIGINT, SIGTERM and SIGHUP back (POSIX, the main thread) while the block runs; one
+    that came meanwhile is handled as the block ends. The threads started meanwhile inherit
+    the mask: they never take a signal (Python handles them in the main thread anyway)."""
+    mask = getattr(signal, "pthread_sigmask", None)
+    if mask is None or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {s for n in ("SIGINT", "SIGTERM", "SIGHUP") if (s := getattr(signal, n, None))}
+    previous = mask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        mask(signal.SIG_SETMASK, previous)
+
+
+class _Stopped(Exception):
+    """A worker told to stop (another failed, or the caller was interrupted)."""
+
+
+def _run_threads(work: Callable[[], None], count: int, errors: list[BaseException]) -> None:
+    """Run ``work`` on ``count`` threads and wait until each has finished with MuJoCo,
+    whatever happens meanwhile.
+
+    A signal (Ctrl-C, SIGTERM, SIGHUP: the CLI raises them in this thread) or any error while
+    waiting stops the workers (they look at ``errors`` between blocks of steps, so each ends
+    within one block) and still waits for them before it goes on up: a thread inside MuJoCo
+    (a call, or freeing its ``MjData``) when the interpreter finalises crashed the process
+    (exit 139, issue 30). Each worker says it is done with an event of its own, set after its
+    MuJoCo objects are freed: ``Thread.join`` cannot be trusted once interrupted (Python 3.11
+    may then mark a running thread as stopped). A second interrupt while they stop waits too."""
+    done = [threading.Event() for _ in range(count)]
+
+    def run(k: int) -> None:
+        try:
+            work()
+        finally:
+            done[k].set()
+
+    pending: BaseException | None = None
+    pool = [threading.Thread(target=run, args=(k,), daemon=True) for k in range(count)]
+    started: list[threading.Event] = []
+    try:
+        with _signals_held():  # a signal in Thread.start would hide a started thread
+            for k, th in enumerate(pool):
+                th.start()
+                started.append(done[k])
+        for event in done:
+            event.wait()
+    except BaseException as exc:
+        pending = exc
+        errors.append(exc)  # the workers stop at their next block
+    while not all(event.is_set() for event in started):
+        try:
+            for event in started:
+                event.wait()
+        except BaseException as exc:  # another signal: still wait for them (one block each)
+            pending = pending or exc
+    if pending is not None:
+        raise pending
 
 
 class _ContactNamer(Observer):

@@ -31,6 +31,7 @@ import mujoco
 import numpy as np
 
 from ..model.load import arm_index
+from ..model.twin import contact_twin
 from ..sim.stepping import Observer, Trace
 from .screen import contacts_at, record_contacts
 
@@ -58,6 +59,13 @@ def vectorisable(m: mujoco.MjModel) -> bool:
     result = _vectorisable_now(m)
     _vectorisable[m] = (key, result)
     return result
+
+
+def derivable(m: mujoco.MjModel) -> bool:
+    """Whether :class:`StateRecorder` gives the step recorder's samples bit for bit on ``m``:
+    its forces follow from the states (:func:`vectorisable`), or the kernel steps it on its
+    contact twin (whose sensors record MuJoCo's own forces)."""
+    return vectorisable(m) or contact_twin(m) is not None
 
 
 def _vectorisable_now(m: mujoco.MjModel) -> bool:
@@ -120,8 +128,9 @@ def actuator_forces(
 
 class StateRecorder(Observer):
     """The step recorder's samples (``times``, ``forces``, ``contacts``, :meth:`effort`),
-    derived from the kernel's states after each block (see the module). Only for
-    :func:`vectorisable` models."""
+    derived from the kernel's states after each block (see the module), over one segment or
+    several in a row (one sample before the first, one after every step, as the step
+    recorder). Only where :func:`derivable` says so."""
 
     wants_contact_counts = True  # the kernel's contact twin says which steps touched
 
@@ -150,10 +159,10 @@ class StateRecorder(Observer):
 
     # -- the observer
     def on_start(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
-        # the sample the step recorder takes before the first step: d as it is
-        self._times.append(np.array([d.time]))
-        self._forces.append(d.actuator_force[self.act][None].copy())
-        self._record_contacts(d, float(d.time))
+        if not self._times:  # the sample the step recorder takes before the first step
+            self._times.append(np.array([d.time]))
+            self._forces.append(d.actuator_force[self.act][None].copy())
+            self._record_contacts(d, float(d.time))
         self._qpos, self._qvel = d.qpos.copy(), d.qvel.copy()
         self._mocap = (d.mocap_pos.copy(), d.mocap_quat.copy())
 
@@ -202,4 +211,4 @@ class StateRecorder(Observer):
         record_contacts(self.m, d, t, self.contacts)
 
 
-__all__ = ["StateRecorder", "actuator_forces", "vectorisable"]
+__all__ = ["StateRecorder", "actuator_forces", "derivable", "vectorisable"]

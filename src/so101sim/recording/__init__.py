@@ -38,6 +38,9 @@ The modules, one job each:
 - :mod:`.envelope`: a bounded summary of a run's steps (smallest and largest per bucket);
 - :mod:`.plot`: :class:`RunLog`, :class:`TraceCollector`, :func:`plot_run`;
 - :mod:`.recorder`: :class:`Recorder`, all of the above at once.
+
+May import: ``so101sim.scenes`` (a scene's cameras), ``so101sim.motion``, ``so101sim.sim``,
+``so101sim.kinematics``, ``so101sim.model``, ``so101sim.units`` and the base modules.
 """
 
 from typing import TYPE_CHECKING

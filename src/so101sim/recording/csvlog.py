@@ -64,7 +64,7 @@ class CsvLog(Observer):
         self.servo = _csv_line([servo_name(model)]).replace("%", "%%")
         self.rows = 0
         self.closed = False
-        self._file = PendingFile(self.path)
+        self._file = PendingFile(self.path, force=force)
         self._fh: IO[str] | None = None
         self._finished = False
         self._written: Path | None = None

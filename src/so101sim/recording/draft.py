@@ -3,8 +3,12 @@ simplified meshes: their manifest, matching a model to the file its draft versio
 (:func:`draft_source`, by file or by a content fingerprint), and compiling that draft version.
 
 The ``draft`` preset swaps the visual meshes for simplified ones shipped in
-``so101sim/data/draft_meshes`` and turns off multisampling and reflections (the renderer turns
-off shadows); ``full`` keeps the model's look. The physics model is never changed.
+``so101sim/data/draft_meshes`` (about 5000 triangles each), or, for frames no larger than
+:data:`SMALL_FRAME_PX` on their longer side (the images a policy is trained on), in
+``so101sim/data/draft_meshes_small`` (about 800: a CPU rasteriser draws such a frame about
+twice as fast, and at that size the two sets look alike), and turns off multisampling and
+reflections (the renderer turns off shadows); ``full`` keeps the model's look. The physics
+model is never changed.
 """
 
 from __future__ import annotations
@@ -30,6 +34,9 @@ from .settings import check_quality
 
 log = logging.getLogger(__name__)
 
+SMALL_FRAME_PX = 256
+"""Frames whose longer side is at most this many pixels are drawn with the smaller meshes."""
+
 SHIPPED_MODEL_FILES = ("scene.xml", "so101_new_calib.xml", "so101_old_calib.xml")
 """The shipped MJCF files, in :func:`so101sim.model.model_dir`."""
 
@@ -45,20 +52,23 @@ _DRAWN_FIELDS = (
 )  # fmt: skip
 _fingerprints: weakref.WeakKeyDictionary[mujoco.MjModel, str] = weakref.WeakKeyDictionary()
 _render_lock = threading.Lock()
-_draft_cache: dict[tuple[str, int], mujoco.MjModel | None] = {}
-_scene_drafts: weakref.WeakKeyDictionary[mujoco.MjModel, mujoco.MjModel | None] = (
+_draft_cache: dict[tuple[str, int, bool], mujoco.MjModel | None] = {}
+_scene_drafts: weakref.WeakKeyDictionary[mujoco.MjModel, dict[bool, mujoco.MjModel | None]] = (
     weakref.WeakKeyDictionary()
 )
 
 
-def draft_mesh_dir() -> Path:
-    """The folder of the simplified visual meshes used by the ``draft`` preset."""
-    return Path(__file__).parent.parent / "data" / "draft_meshes"
+def draft_mesh_dir(small: bool = False) -> Path:
+    """The folder of the simplified visual meshes used by the ``draft`` preset (``small``:
+    those for frames up to :data:`SMALL_FRAME_PX`)."""
+    return (
+        Path(__file__).parent.parent / "data" / ("draft_meshes_small" if small else "draft_meshes")
+    )
 
 
 @functools.cache
-def _draft_manifest() -> dict[str, dict[str, Any]]:
-    path = draft_mesh_dir() / "manifest.json"
+def _draft_manifest(small: bool = False) -> dict[str, dict[str, Any]]:
+    path = draft_mesh_dir(small) / "manifest.json"
     if not path.is_file():
         return {}
     return json.loads(path.read_text())["meshes"]
@@ -70,22 +80,22 @@ def _sha256(path: str, mtime_ns: int) -> str:
 
 
 # ---------------------------------------------------------------------------- compiling a draft
-def _has_draft(spec: mujoco.MjSpec, mesh: Any) -> bool:
+def _has_draft(spec: mujoco.MjSpec, mesh: Any, small: bool = False) -> bool:
     """Whether the manifest has a draft of ``mesh`` made from this very file (by SHA-256)."""
-    entry = _draft_manifest().get(Path(mesh.file).name)
+    entry = _draft_manifest(small).get(Path(mesh.file).name)
     original = Path(spec.modelfiledir or ".") / (spec.meshdir or "") / mesh.file
     if entry is None or not original.is_file():
         return False
     return _sha256(str(original), original.stat().st_mtime_ns) == entry["original_sha256"]
 
 
-def _add_draft_meshes(spec: mujoco.MjSpec) -> dict[str, str]:
+def _add_draft_meshes(spec: mujoco.MjSpec, small: bool = False) -> dict[str, str]:
     """Add the draft version of each mesh that has one; return {mesh name: draft mesh name}."""
     swapped: dict[str, str] = {}
-    for mesh in [m for m in spec.meshes if _has_draft(spec, m)]:
+    for mesh in [m for m in spec.meshes if _has_draft(spec, m, small)]:
         draft = spec.add_mesh()
         draft.name = f"{mesh.name}__draft"
-        draft.file = str(draft_mesh_dir() / Path(mesh.file).name)
+        draft.file = str(draft_mesh_dir(small) / Path(mesh.file).name)
         draft.scale = mesh.scale
         swapped[mesh.name] = draft.name
     return swapped
@@ -109,14 +119,14 @@ def _delete_unused_meshes(spec: mujoco.MjSpec) -> None:
         spec.delete(mesh)
 
 
-def _compile_draft(source: Path) -> mujoco.MjModel | None:
+def _compile_draft(source: Path, small: bool = False) -> mujoco.MjModel | None:
     """Compile ``source`` for drawing only: visual mesh geoms use the shipped simplified meshes
     whose originals match (by SHA-256), collision geoms are left out. None if nothing matches."""
-    return _compile_draft_spec(mujoco.MjSpec.from_file(str(source)))
+    return _compile_draft_spec(mujoco.MjSpec.from_file(str(source)), small)
 
 
-def _compile_draft_spec(spec: mujoco.MjSpec) -> mujoco.MjModel | None:
-    swapped = _add_draft_meshes(spec)
+def _compile_draft_spec(spec: mujoco.MjSpec, small: bool = False) -> mujoco.MjModel | None:
+    swapped = _add_draft_meshes(spec, small)
     if not swapped:
         return None
     _use_draft_meshes(spec, swapped)
@@ -124,13 +134,13 @@ def _compile_draft_spec(spec: mujoco.MjSpec) -> mujoco.MjModel | None:
     return spec.compile()
 
 
-def _cached_draft(source: Path) -> mujoco.MjModel | None:
+def _cached_draft(source: Path, small: bool = False) -> mujoco.MjModel | None:
     """The draft version of ``source``, compiled once per file version (None: none)."""
-    key = (str(source), source.stat().st_mtime_ns)
+    key = (str(source), source.stat().st_mtime_ns, small)
     with _render_lock:
         if key not in _draft_cache:
             try:
-                _draft_cache[key] = _compile_draft(source)
+                _draft_cache[key] = _compile_draft(source, small)
             except (ValueError, mujoco.FatalError) as exc:  # keep the model's meshes
                 log.warning("draft meshes not used for %s: %s", source, exc)
                 _draft_cache[key] = None
@@ -211,20 +221,21 @@ def draft_source(model: mujoco.MjModel) -> tuple[Path | None, str]:
 
 
 # ---------------------------------------------------------------------------- render models
-def _draft_model(model: mujoco.MjModel) -> mujoco.MjModel:
+def _draft_model(model: mujoco.MjModel, small: bool = False) -> mujoco.MjModel:
     """The draft version of ``model`` with the same bodies and joints, else ``model`` itself
     (with a logged warning saying why)."""
     builder = scene_builder(model)  # a scene built with MjSpec (cameras, objects): rebuild it
     if builder is not None:
         with _render_lock:
-            if model not in _scene_drafts:
-                _scene_drafts[model] = _compile_draft_spec(builder())
-            draft = _scene_drafts[model]
+            drafts = _scene_drafts.setdefault(model, {})
+            if small not in drafts:
+                drafts[small] = _compile_draft_spec(builder(), small)
+            draft = drafts[small]
         if draft is not None and (draft.nq, draft.nbody) == (model.nq, model.nbody):
             return draft
     source, why = draft_source(model)
     if source is not None:
-        draft = _cached_draft(source)
+        draft = _cached_draft(source, small)
         if draft is not None and (draft.nq, draft.nbody) == (model.nq, model.nbody):
             return draft
         why = f"no shipped simplified mesh matches the meshes of {source}"
@@ -255,14 +266,16 @@ def render_model(model: mujoco.MjModel, quality: str, width: int, height: int) -
     least ``width`` × ``height``. Same bodies and joints as ``model``; the physics model itself
     is never changed.
 
-    ``draft``: the simplified visual meshes (when ``model`` is, or draws the same as, a model
+    ``draft``: the simplified visual meshes (the smaller set for frames up to
+    :data:`SMALL_FRAME_PX`; when ``model`` is, or draws the same as, a model
     compiled from a file whose meshes they were made from: see :func:`draft_source`), no
     multisampling, no reflections (shadows are turned off by the renderer); otherwise the
     model's own meshes, with a logged warning. ``full``: a copy of ``model`` as it is.
     """
     check_quality(quality)
     model = _drawable(model)
-    rm = copy.copy(_draft_model(model) if quality == "draft" else model)
+    small = max(width, height) <= SMALL_FRAME_PX
+    rm = copy.copy(_draft_model(model, small) if quality == "draft" else model)
     rm.vis.global_.offwidth = max(int(rm.vis.global_.offwidth), width)
     rm.vis.global_.offheight = max(int(rm.vis.global_.offheight), height)
     if quality == "draft":

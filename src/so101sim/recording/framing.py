@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 import mujoco
 import numpy as np
@@ -22,6 +23,9 @@ import numpy as np
 from ..errors import SettingError
 from ..model.load import arm_index, arm_units
 from ..validation import check_choice, check_range
+
+ViewName = Literal["default", "front", "side", "top"]
+"""The named views of a video's free camera (:data:`NAMED_VIEWS`)."""
 
 NAMED_VIEWS: dict[str, tuple[float, float]] = {
     "default": (160.0, -20.0),
@@ -54,7 +58,7 @@ class CameraView:
         cam.elevation = self.elevation
 
 
-def view_direction(name: str) -> tuple[float, float]:
+def view_direction(name: ViewName) -> tuple[float, float]:
     """(azimuth, elevation) of a named view; SettingError lists the names."""
     return NAMED_VIEWS[check_choice(name, "view", NAMED_VIEWS)]
 
@@ -188,7 +192,7 @@ def view_for_run(
     elevation: float | None = None,
     distance: float | None = None,
     lookat: Sequence[float] | None = None,
-    view: str = "default",
+    view: ViewName = "default",
 ) -> CameraView:
     """The camera for a video of ``qpos_frames``: the named ``view``'s direction (or the given
     azimuth/elevation), fitted to the arm's sweep; ``distance`` and ``lookat`` override the

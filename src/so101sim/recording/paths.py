@@ -6,8 +6,17 @@ read-only folder (tried by creating and removing the temporary file there, so ``
 and read-only mounts are caught too), a name longer than the file system allows, and an existing
 device, pipe or socket (``--force`` replaces regular files only: ``--log /dev/null --force``
 must not replace ``/dev/null``). :class:`PendingFile` is the temporary file and its rename; its
-steps may be repeated, so a finish interrupted by Ctrl-C can be resumed. :func:`write_error`
-turns an ``OSError`` met while writing (a full disk) into an :class:`OutputPathError`.
+steps may be repeated, so a finish interrupted by Ctrl-C can be resumed.
+
+**Claimed atomically.** Without ``force``, the finished file is linked to its path, which
+fails if anything is there (``os.link``: one atomic step, no window), instead of renamed over
+it: two processes writing the same ``--log``, ``--record`` or ``--plot`` at once give one file
+and one error (:class:`~so101sim.errors.OutputPathError`, "appeared while this run wrote it"),
+never two successes and a lost file. With ``force`` it is renamed over what is there, as
+before. A file system without hard links claims the path with ``O_EXCL`` and then renames.
+
+:func:`write_error` turns an ``OSError`` met while writing (a full disk) into an
+:class:`OutputPathError`.
 """
 
 from __future__ import annotations
@@ -18,7 +27,14 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from ..errors import OutputPathError
-from ..validation import DEFAULT_NAME_MAX, DEFAULT_PATH_MAX, path_limit, temp_name
+from ..validation import (
+    DEFAULT_NAME_MAX,
+    DEFAULT_PATH_MAX,
+    claim_path,
+    path_limit,
+    remove_stale_temps,
+    temp_name,
+)
 from ..validation import check_output_path as _check_output_path
 
 __all__ = [
@@ -84,10 +100,12 @@ class PendingFile:
     done again.
     """
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, *, force: bool = False) -> None:
         self.path = path
+        self.force = force  # False: refuse a path that holds a file by then (claimed once)
         self.folder = path.parent if str(path.parent) else Path(".")
         self.tmp = self.folder / temp_name(path, path_limit(self.folder, "PC_NAME_MAX", 255))
+        remove_stale_temps(path)  # those a run killed by SIGKILL left (its process gone)
         self.committed = False
         self._renaming = False
 
@@ -97,9 +115,24 @@ class PendingFile:
         if self._renaming and not self.tmp.exists() and self.path.exists():
             self.committed = True  # renamed, then interrupted before this was noted
             return
+        if self._renaming and _same_file(self.tmp, self.path):
+            self.tmp.unlink()  # linked, then interrupted before the temporary name went
+            self.committed = True
+            return
         self._renaming = True
-        os.replace(self.tmp, self.path)
+        if self.force:
+            os.replace(self.tmp, self.path)
+        else:
+            self._claim()  # refused: the temporary file removed, OutputPathError raised
         self.committed = True
+
+    def _claim(self) -> None:
+        """Move the temporary file to :attr:`path` unless something is there (atomic)."""
+        try:
+            claim_path(self.tmp, self.path)
+        except OutputPathError:
+            self._renaming = False  # refused: what is at the path is not this file
+            raise
 
     def discard(self) -> None:
         if not self.committed:
@@ -114,11 +147,21 @@ class PendingFile:
         return self.path
 
 
-def write_atomically(path: Path, write: Callable[[Path], object], what: str = "output") -> Path:
-    """Call ``write(tmp)`` to write the file under a temporary name, then move it to ``path``;
-    on any error (Ctrl-C included) the temporary file is removed and the error raised (an
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def write_atomically(
+    path: Path, write: Callable[[Path], object], what: str = "output", *, force: bool = False
+) -> Path:
+    """Call ``write(tmp)`` to write the file under a temporary name, then move it to ``path``
+    (without ``force``: only if nothing is there by then, see :class:`PendingFile`); on any
+    error (Ctrl-C included) the temporary file is removed and the error raised (an
     ``OSError``, such as a full disk, as :class:`OutputPathError`)."""
-    pending = PendingFile(path)
+    pending = PendingFile(path, force=force)
     try:
         write(pending.tmp)
         pending.commit()

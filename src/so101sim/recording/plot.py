@@ -175,10 +175,11 @@ def plot_run(
         ncol=6 if width >= 1200 else 3,
     )
     _shade_phases([*axes, err_ax], err_ax, run)
-    heading = title or "so101sim run: commanded vs measured joint angles"
+    heading = title or "so101sim: commanded vs measured joint angles"  # run, hold or record
     fig.suptitle(f"{heading}\nservo model: {servo}" if servo else heading)
     fmt = p.suffix.lstrip(".").lower()
-    return write_atomically(p, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt), what="plot")
+    save = lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt)  # noqa: E731
+    return write_atomically(p, save, what="plot", force=force)
 
 
 def _plot_joint(ax: Any, run: RunLog, i: int) -> None:

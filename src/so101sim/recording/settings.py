@@ -4,16 +4,19 @@ quality preset, caption), the quality presets and the cameras a model offers."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal, get_args
 
 import mujoco
 
 from .. import gl
 from ..errors import CameraError, RecordingError
 from ..validation import check_choice, check_count, check_range
-from .framing import NAMED_VIEWS
+from .framing import NAMED_VIEWS, ViewName
 
-QUALITIES = ("draft", "full")
-QUALITY_CHOICES = ("auto", *QUALITIES)
+Quality = Literal["draft", "full"]
+QualityChoice = Literal["auto", "draft", "full"]
+QUALITIES: tuple[str, ...] = get_args(Quality)
+QUALITY_CHOICES: tuple[str, ...] = get_args(QualityChoice)
 FREE_CAMERA = "free"
 MAX_FPS = 240.0
 MIN_FRAME_SIZE = 16
@@ -38,10 +41,10 @@ class VideoSettings:
     height: int = 480
     fps: float = 30.0
     camera: str = FREE_CAMERA
-    quality: str = "auto"
+    quality: QualityChoice = "auto"
     caption: bool = True
     title: str | None = None
-    view: str = "default"
+    view: ViewName = "default"
     azimuth: float | None = None
     elevation: float | None = None
     distance: float | None = None

@@ -60,6 +60,7 @@ class VideoRecorder(Observer):
         self.settings = (settings or VideoSettings()).validated()
         self.sweep = sweep  # the arm's joint positions over the run, when known (framing)
         self.path = check_output_path(path, force=force, what="video", suffixes=VIDEO_SUFFIXES)
+        self.force = force  # the finished file replaces one there by then only with force
         check_camera(model, self.settings.camera)
         self.progress = progress
         self.preset = preset
@@ -108,7 +109,7 @@ class VideoRecorder(Observer):
         s = self.settings
         if self._renderer is None:
             self._renderer = FrameRenderer(self._model, s, sweep=self.sweep)
-        self._file = PendingFile(self.path)
+        self._file = PendingFile(self.path, force=self.force)
         try:
             self._encoder = FfmpegEncoder(
                 self._file.tmp,

@@ -62,6 +62,7 @@ import numpy as np
 from ..errors import DeviceAlreadyConnectedError, DeviceNotConnectedError, RobotConfigError
 from ..exitgate import gated
 from ..model.arm import gripper_full_range, load_profile
+from ..sim import fastpath
 from ..sim.simulation import Simulation
 from ..units import GRIPPER_INDEX, STARTING_POSE, parse_pose
 from ..validation import check_duration
@@ -251,7 +252,7 @@ class SO101SimFollower:
         before_observation(self)  # a scene reset asked for between takes
         with self._lock:
             self._check_connected()  # again: disconnect() may have ended while we waited
-            values = self._sim.pose_values()
+            values = fastpath.pose_values(self._sim)
             # LeRobot clamps the gripper's reading to its calibrated range (0..100)
             values[GRIPPER_INDEX] = min(100.0, max(0.0, values[GRIPPER_INDEX]))
             shot = self._rig.snapshot() if self._rig.specs else None  # copied under the lock
@@ -293,7 +294,7 @@ class SO101SimFollower:
             sent, clipped = clip_to_limits(names, wanted, self._limits)
             if clipped:
                 log.warning(_CLIP_MESSAGE, pformat(clipped, indent=4))
-            self._sim.command_joints(idx, sent)
+            fastpath.command_joints(self._sim, idx, sent)
             if self.config.mode == "lockstep" and self.config.lockstep_action_seconds:
                 self._runner.advance(self.config.lockstep_action_seconds)
         return dict(zip([MOTOR_KEYS[i] for i in idx], sent, strict=True))

@@ -15,6 +15,8 @@ added with ``mujoco.MjSpec`` so the vendored files are never edited.
   and camera jitter (:class:`VisualJitter`).
 
 Frames come from :class:`so101sim.recording.FrameRenderer` with ``camera=<name>``.
+
+May import: ``so101sim.model``, ``so101sim.units`` and the base modules.
 """
 
 from .build import TableScene, build_model, build_scene, scene_builder, scene_of, scene_spec

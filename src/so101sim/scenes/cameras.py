@@ -95,14 +95,23 @@ class CameraSpec:
         return (*right.tolist(), *up.tolist())
 
 
+WRIST_LENS_M = (0.0025, 0.0609, 0.0120)
+"""Where the wrist camera's lens sits in the gripper's frame (metres): the centre of the lens
+hole of the SO-ARM100 repository's 32x32 UVC wrist mount (docs/cameras.md)."""
+WRIST_AXIS = (0.0087, -0.4616, -0.8870)
+"""The wrist camera's viewing direction in the gripper's frame: the mount's plate normal."""
+
 PRESET_CAMERAS: dict[str, CameraSpec] = {
-    "front": CameraSpec("front", pos=(0.5, 0.0, 0.42), lookat=(0.15, 0.0, 0.02), fovy=55.0),
+    # a USB webcam on the table in front of the arm, looking back at it (docs/cameras.md)
+    "front": CameraSpec("front", pos=(0.5, 0.0, 0.42), lookat=(0.15, 0.0, 0.02), fovy=52.0),
+    # the SO-ARM100 repository's 32x32 UVC wrist mount: the lens 61 mm beside the roll axis,
+    # 12 mm behind the wrist-roll part, looking along the jaws, tilted 27.5 deg towards them
     "wrist": CameraSpec(
         "wrist",
         body="gripper",
-        pos=(0.0, -0.055, -0.03),
-        lookat=(0.0, 0.0, -0.15),
-        up=(0.0, -1.0, 0.0),
+        pos=WRIST_LENS_M,
+        lookat=tuple(p + 0.1 * n for p, n in zip(WRIST_LENS_M, WRIST_AXIS, strict=True)),
+        up=(0.0, 1.0, 0.0),
         fovy=75.0,
     ),
 }

@@ -47,6 +47,29 @@ BOWL = SceneObject(
 )
 """A 9 cm wide, 3.5 cm tall blue bowl (its wall 16 flat segments), 150 g."""
 
+CYLINDER = SceneObject(
+    "object",
+    shape="cylinder",
+    size=(0.025, 0.035),
+    mass=0.03,
+    rgba=(0.95, 0.6, 0.1, 1.0),
+    pos=(0.19, 0.08),
+    x_range=(0.14, 0.23),
+    y_range=(-0.11, 0.11),
+)
+"""A 2.5 cm wide, 3.5 cm tall, 30 g orange cylinder standing on the table (the lift task)."""
+SPHERE = SceneObject(
+    "object",
+    shape="sphere",
+    size=(0.028,),
+    mass=0.025,
+    rgba=(0.2, 0.7, 0.3, 1.0),
+    pos=(0.19, 0.08),
+    x_range=(0.14, 0.23),
+    y_range=(-0.11, 0.11),
+)
+"""A 2.8 cm, 25 g green ball (the lift task)."""
+
 FOLDED_ARM = (-0.1, 0.21, -0.035, 0.035)
 """Where the arm in its folded rest pose (:data:`so101sim.units.STARTING_POSE`) lies on the
 table: its gripper rests 16 mm above the table up to 19 cm in front of the base. Drawn start
@@ -59,8 +82,11 @@ SCENE_PRESETS: dict[str, TableScene] = {
         name="cube_to_bowl",
         keep_out=(FOLDED_ARM,),
     ),
+    "lift_cylinder": TableScene(objects=(CYLINDER,), name="lift_cylinder", keep_out=(FOLDED_ARM,)),
+    "lift_sphere": TableScene(objects=(SPHERE,), name="lift_sphere", keep_out=(FOLDED_ARM,)),
 }
-"""Table-top scenes by name: a cube to pick up; a cube to put in a bowl."""
+"""Table-top scenes by name: a cube to pick up; a cube to put in a bowl; a cylinder or a
+ball to lift (the lift tasks)."""
 
 
 def preset_scene(

@@ -8,7 +8,8 @@ trajectory is sampled at the physics timestep.
 A move asked to take longer than the limits need takes exactly the time asked (ruckig's
 ``minimum_duration``). A move asked to take less is **stretched** to the shortest time the
 limits allow, with a warning in the log, or refused with :class:`TrajectoryLimitError` in
-strict mode (``LimitedProfile(strict=True)``, or :func:`check_limited_moves` before a run).
+strict mode (``LimitedProfile(strict=True)``, or, before a run, the motion planner:
+``plan_segments(..., strict=True)`` in :mod:`so101sim.motion.plan`).
 
 Default limits (:data:`STS3215_LIMITS`), in degrees of joint rotation, for the SO-101's Feetech
 STS3215 servos (7.4 V version, 1/345 gearing, on the follower arm):
@@ -194,49 +195,37 @@ class ShortMove:
     needed: float  # s, the shortest duration that passes: minimum rounded up to whole steps
 
 
-def check_limited_moves(
+def short_move(
+    profile: LimitedProfile,
+    index: int,
+    phase: str,
     start: np.ndarray,
-    steps: Sequence[object],
-    timestep: float,
-    *,
-    profile: LimitedProfile | None = None,
-    units: ArmUnits | None = None,
-    strict: bool = False,
-) -> list[ShortMove]:
-    """Find the ``limited`` moves of ``steps`` that are too short for the limits, before
-    anything moves. ``start`` is the first commanded pose (arm units).
+    goal: np.ndarray,
+    n: int,
+    dt: float,
+) -> ShortMove | None:
+    """The move ``index`` of a motion (``phase``), ``n`` steps of ``dt`` s from ``start`` to
+    ``goal`` (arm units) with ``profile``, as a :class:`ShortMove` if it is too short for the
+    limits (the same test as the profile's own, so both agree), else None. The motion planner
+    (:func:`so101sim.motion.plan.plan_segments`) asks this of every ``limited`` move, from the
+    start it planned for it."""
+    t_min = profile.minimum_duration(start, goal)
+    needed = minimum_steps(t_min, dt)
+    if n >= needed:
+        return None
+    return ShortMove(index, phase, n * dt, t_min, needed * dt)
 
-    Steps are :class:`so101sim.motion.Move` / ``Hold`` objects; a move's start is the previous
-    move's target. With ``strict``, raises :class:`TrajectoryLimitError` naming the first.
-    """
-    prof = profile if profile is not None else LimitedProfile(units=units)
-    units = units if units is not None else prof.units
-    current = np.asarray(start, dtype=float)
-    short: list[ShortMove] = []
-    for i, step in enumerate(steps):
-        target = getattr(step, "target", None)
-        if target is None:
-            continue
-        goal = units.pose_to_array(target, base=current, check_limits=False)
-        name = getattr(step, "profile", "linear")
-        if name == "limited" or isinstance(name, LimitedProfile):
-            p = name if isinstance(name, LimitedProfile) else prof
-            n = max(1, round(float(step.duration) / timestep))
-            t_min = p.minimum_duration(current, goal)
-            needed = minimum_steps(t_min, timestep)
-            if n < needed:  # the same test as the profile's own, so both agree
-                phase = str(getattr(step, "phase", "move"))
-                short.append(ShortMove(i, phase, n * timestep, t_min, needed * timestep))
-        current = goal
-    if strict and short:
-        s = short[0]
-        raise TrajectoryLimitError(
-            f"step {s.index + 1} ({s.phase}) asks for {s.requested:.3f} s but the joint limits "
-            f"need at least {s.needed:.3f} s ({s.minimum:.4f} s rounded up to whole "
-            f"{timestep * 1000:g} ms steps); lengthen it to {s.needed:.3f} s or more, or run "
-            f"without --strict to stretch it ({len(short)} move(s) too short in all)"
-        )
-    return short
+
+def too_short(short: Sequence[ShortMove], dt: float) -> TrajectoryLimitError:
+    """The error that refuses a motion (strict mode) whose ``limited`` moves ``short`` are too
+    short for the joint limits, naming the first."""
+    s = short[0]
+    return TrajectoryLimitError(
+        f"step {s.index + 1} ({s.phase}) asks for {s.requested:.3f} s but the joint limits "
+        f"need at least {s.needed:.3f} s ({s.minimum:.4f} s rounded up to whole "
+        f"{dt * 1000:g} ms steps); lengthen it to {s.needed:.3f} s or more, or run "
+        f"without --strict to stretch it ({len(short)} move(s) too short in all)"
+    )
 
 
 __all__ = [
@@ -244,6 +233,7 @@ __all__ = [
     "JointLimits",
     "LimitedProfile",
     "ShortMove",
-    "check_limited_moves",
     "minimum_steps",
+    "short_move",
+    "too_short",
 ]

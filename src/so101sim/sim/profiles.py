@@ -32,10 +32,13 @@ Profile = Callable[[np.ndarray, np.ndarray, int, float], np.ndarray]
 ``n_steps`` if the profile must stretch the move)."""
 
 
-def steps_for(duration: float, timestep: float, *, maximum: float = MAX_DURATION_S) -> int:
+def steps_for(
+    duration: float, timestep: float, *, maximum: float = MAX_DURATION_S, what: str = "duration"
+) -> int:
     """Physics steps in ``duration`` seconds: ``round(duration / timestep)``, at least 1.
-    ``duration`` is checked first (> 0, at most ``maximum`` seconds, a day by default)."""
-    n = round(check_duration(duration, maximum=maximum) / timestep)
+    ``duration`` is checked first (> 0, at most ``maximum`` seconds, a day by default; the
+    error names it ``what``)."""
+    n = round(check_duration(duration, what, maximum=maximum) / timestep)
     if n == 0:
         log.warning(
             "duration %g s is shorter than half a physics step (%g s); it takes one step",

@@ -6,45 +6,41 @@ arm: :meth:`~Simulation.move_to`, :meth:`~Simulation.hold`, :meth:`~Simulation.s
 move is planned whole by a profile (:mod:`so101sim.sim.profiles`), then stepped by
 :func:`so101sim.sim.stepping.advance`; the result is a :class:`SegmentResult`.
 
-The stepping pieces (:class:`Observer`, :class:`Trace`, :class:`Pacer`,
-:class:`ViewerObserver`, :func:`advance`) are re-exported here from :mod:`so101sim.sim.stepping`.
+Re-exported here: the stepping pieces (:class:`Observer`, :class:`Trace`, :class:`Pacer`,
+:class:`ViewerObserver`, :func:`advance`) and :class:`SegmentResult`. Apart: the arm's state in
+its units (:mod:`.armstate`), planning a move (:mod:`.moveplan`), the robot's per-call path
+(:mod:`.fastpath`).
 
-Why this module is over 400 lines: it is the one class users drive, and its public methods
-(each short, with its docstring) belong together; the stepping machinery is already apart.
-
-Long on purpose: :class:`Simulation` is the sim layer's one public object; its methods
-share its state (the commanded targets, the observers, the viewers' timelines) and are
-its documentation, so it stays one class in one module.
+One spelling per concept (issue 30): the measured pose is :meth:`~Simulation.pose` (a dict) or
+:meth:`~Simulation.pose_array` (arm units, an array); a target is set by
+:meth:`~Simulation.command` (a pose, joints left out keep theirs) or
+:meth:`~Simulation.command_array` (all six). ``pose_values`` and ``command_joints`` (the
+robot's per-call path) are deprecated: :func:`so101sim.sim.fastpath.pose_values` and
+:func:`~so101sim.sim.fastpath.command_joints`. A move's timing is its ``shape=`` (``profile=``
+is deprecated: "profile" names the arm profile, the servos' model).
 """
 
 from __future__ import annotations
 
 import logging
 import threading
-import weakref
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
 
-from ..errors import DurationError, ModelError, SettingError
+from ..errors import SettingError
 from ..exitgate import gated
-from ..model.arm import ArmLike, fill_delay_history
+from ..model.arm import ArmLike
 from ..model.load import ArmIndex, arm_index, arm_units, load_model
-from ..units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose, unit_warnings
-from ..validation import MAX_DURATION_S, check_choice, check_count
-from .profiles import (
-    MAX_MOVE_DURATION_S,
-    Profile,
-    duration_warning,
-    fractions,
-    get_profile,
-    plan,
-    steps_for,
-)
+from ..units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose
+from ..validation import MAX_DURATION_S, check_count
+from .armstate import ATTACHED, ArmState, ArmTargets, check_data
+from .moveplan import Shape, TipPath, move_shape, plan_joint_move, plan_tip_move
+from .profiles import duration_warning, steps_for
+from .results import TRACE_AUTO_STEPS, ErrorTracker, SegmentKind, SegmentResult, keep_trace
 from .stepping import (
     Observer,
     Pacer,
@@ -60,73 +56,11 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-__all__ = [
-    "TRACE_AUTO_STEPS",
-    "Observer",
-    "Pacer",
-    "SegmentResult",
-    "Simulation",
-    "Trace",
-    "ViewerObserver",
-    "advance",
-    "measured_radians",
-]
+__all__ = ["TRACE_AUTO_STEPS", "Observer", "Pacer", "SegmentResult", "Simulation", "Trace"]
+__all__ += ["ViewerObserver", "advance", "measured_radians"]
 
 
-# ---------------------------------------------------------------------------- results
-@dataclass(frozen=True)
-class SegmentResult:
-    """What one move or hold did. Poses are dicts in the arm's units; arrays are per step."""
-
-    phase: str
-    kind: str  # "move" | "hold" | "step"
-    start_time: float
-    end_time: float
-    steps: int
-    start: dict[str, float]  # commanded pose at the start
-    target: dict[str, float]  # final commanded pose
-    reached: dict[str, float]  # measured pose at the end
-    max_tracking_error: dict[str, float]  # max |commanded - measured| over the segment
-    completed: bool
-    times: np.ndarray = field(repr=False)  # (n,) simulated time after each step
-    commanded: np.ndarray = field(repr=False)  # (n, 6) arm units
-    measured: np.ndarray = field(repr=False)  # (n, 6) arm units
-
-    @property
-    def duration(self) -> float:
-        return self.end_time - self.start_time
-
-    @property
-    def final_error(self) -> dict[str, float]:
-        """|target - reached| per joint at the end of the segment."""
-        return {n: abs(self.target[n] - self.reached[n]) for n in JOINT_NAMES}
-
-    @property
-    def worst_tracking_error(self) -> tuple[str, float]:
-        """(joint, error) of the largest tracking error over the segment."""
-        name = max(self.max_tracking_error, key=self.max_tracking_error.__getitem__)
-        return name, self.max_tracking_error[name]
-
-
-# ---------------------------------------------------------------------------- the object
-@dataclass
-class _ArmState:
-    """What a :class:`Simulation` knows beyond ``MjData``: whether the arm was ever commanded
-    (to tell "never commanded" from "commanded to 0"), and one viewer timeline per viewer."""
-
-    commanded: bool = False
-    viewers: weakref.WeakKeyDictionary[Any, ViewerObserver] = field(
-        default_factory=weakref.WeakKeyDictionary
-    )
-
-
-# Handout-style code passes a bare (MjModel, MjData) to every call; Simulation.attach() wraps it,
-# and this table lets successive wrappers of the same MjData share one _ArmState (it never
-# holds the MjData itself, so it keeps nothing alive).
-_attached: weakref.WeakKeyDictionary[mujoco.MjData, _ArmState] = weakref.WeakKeyDictionary()
-
-
-class Simulation:
+class Simulation(ArmTargets):
     """An SO-101 in MuJoCo: model, data and clock, in the arm's units.
 
     >>> sim = Simulation()                      # shipped model, arm in its rest pose
@@ -163,15 +97,15 @@ class Simulation:
             model if isinstance(model, mujoco.MjModel) else load_model(model, arm=arm)
         )
         if data is not None:
-            _check_data(self.model, data)
+            check_data(self.model, data)
         self.data = data if data is not None else mujoco.MjData(self.model)
         self.index: ArmIndex = arm_index(self.model)
         self.units: ArmUnits = arm_units(self.model)
-        self._qpos_list: list[int] = self.index.qpos.tolist()  # plain ints, for pose_values
-        self._actuator_list: list[int] = self.index.actuator.tolist()  # for command_joints
+        self._qpos_list: list[int] = self.index.qpos.tolist()  # plain ints, for fastpath
+        self._actuator_list: list[int] = self.index.actuator.tolist()
         self.observers: list[Observer] = []
         self.lock = threading.RLock()
-        self._state = _ArmState()
+        self._state = ArmState()
         self.initial_pose = dict(initial_pose) if initial_pose is not None else None
         if initial_pose is not None:
             self.set_pose(initial_pose)
@@ -179,121 +113,25 @@ class Simulation:
             mujoco.mj_forward(self.model, self.data)
 
     @classmethod
-    def attach(cls, model: mujoco.MjModel, data: mujoco.MjData) -> Simulation:
-        """A Simulation driving an existing ``(model, data)`` as it is (nothing is reset or
-        moved). Every Simulation attached to the same ``data`` shares its commanded-target
-        state and viewer timelines, so the lab's ``(m, d)`` helpers can be called one after
-        another as thin wrappers."""
-        sim = cls(model, data=data, initial_pose=None)
-        state = _attached.get(data)
+    def attach(cls, model: mujoco.MjModel | None, data: mujoco.MjData) -> Simulation:
+        """A Simulation driving an existing ``(model, data)`` (``model`` None: the data's own)
+        as it is (nothing is reset or moved). Every Simulation attached to the same ``data``
+        shares its commanded-target state and viewer timelines, so the lab's ``(m, d)``
+        helpers can be called one after another as thin wrappers.
+
+        Raises:
+            SettingError: ``data`` is not a ``mujoco.MjData`` (e.g. None)."""
+        if not isinstance(data, mujoco.MjData):
+            raise SettingError(
+                f"the simulation's data is {type(data).__name__}, not a mujoco.MjData; expected "
+                "the d of m, d = so101sim.load_model(), mujoco.MjData(m)"
+            )
+        sim = cls(model if model is not None else data.model, data=data, initial_pose=None)
+        state = ATTACHED.get(data)
         if state is None:
-            state = _attached[data] = _ArmState(commanded=bool(data.ctrl.any()))
+            state = ATTACHED[data] = ArmState(commanded=bool(data.ctrl.any()))
         sim._state = state
         return sim
-
-    # -- clock
-    @property
-    def time(self) -> float:
-        """Simulated time in seconds."""
-        return float(self.data.time)
-
-    @property
-    def timestep(self) -> float:
-        """The physics timestep in seconds (0.002 for the shipped model)."""
-        return float(self.model.opt.timestep)
-
-    # -- state in the arm's units
-    def pose(self) -> dict[str, float]:
-        """The measured pose: body joints in degrees, gripper 0–100."""
-        return self.units.array_to_pose(self.pose_array())
-
-    def pose_array(self) -> np.ndarray:
-        """The measured pose as an array in arm units."""
-        return self.units.from_radians(self.data.qpos[self.index.qpos])
-
-    def pose_values(self) -> list[float]:
-        """:meth:`pose_array` as six plain floats, bit for bit, without NumPy arrays (the
-        robot's per-call path)."""
-        q = self.data.qpos.tolist()
-        return self.units.values_from_radians([q[i] for i in self._qpos_list])
-
-    def commanded(self) -> dict[str, float]:
-        """The last commanded target (the measured pose before any command), rounded to 1e-9
-        so that a commanded 60 reads 60, not 59.99999999999999 after the trip through radians."""
-        return self.units.array_to_pose(np.round(self.commanded_array(), 9) + 0.0)
-
-    def commanded_array(self) -> np.ndarray:
-        """The position targets in arm units, read from ``data.ctrl``; the measured pose if the
-        arm was never commanded (targets untouched since the data was made)."""
-        q = self.data.ctrl[self.index.actuator]
-        if not self._state.commanded and not q.any():
-            return self.pose_array()
-        return self.units.from_radians(q)
-
-    @property
-    def was_commanded(self) -> bool:
-        """Whether a target was ever set (through so101sim or written to ``data.ctrl``)."""
-        return self._state.commanded or bool(self.data.ctrl[self.index.actuator].any())
-
-    def limits(self) -> dict[str, tuple[float, float]]:
-        """Joint name -> (lower, upper) in the arm's units."""
-        return self.units.limits_dict()
-
-    @gated  # no MuJoCo call left running at exit (exitgate)
-    def set_pose(self, pose: Pose, *, clip: bool = False) -> None:
-        """Place the arm at ``pose`` at rest (velocities zero) and command it to stay there."""
-        values = self.units.pose_to_array(pose, clip=clip)
-        q = self.units.to_radians(values)
-        with self.lock:
-            self.data.qpos[self.index.qpos] = q
-            self.data.qvel[self.index.dof] = 0.0
-            self._set_target(q)
-            # the delayed servos' history first, so the forces mj_forward computes are those
-            # of an arm holding the pose (not of a goal still at the history's zeros)
-            fill_delay_history(self.model, self.data)
-            mujoco.mj_forward(self.model, self.data)
-
-    def command(self, pose: Pose, *, clip: bool = False) -> dict[str, float]:
-        """Set the position targets; joints left out keep their last target. Returns the full
-        target that is now commanded (arm units)."""
-        values = self.units.pose_to_array(pose, base=self.commanded_array(), clip=clip)
-        self.command_array(values, check=False)
-        return self.units.array_to_pose(values)
-
-    def command_array(self, values: np.ndarray, *, check: bool = True) -> None:
-        """Set all six position targets from an array in arm units (JOINT_NAMES order).
-
-        With ``check`` (the default) the values are checked against the joint limits first
-        (:class:`~so101sim.errors.JointLimitError`); pass ``check=False`` only for values
-        already validated."""
-        v = np.asarray(values, dtype=float)
-        if check:
-            v = self.units.check_limits(v)
-        with self.lock:
-            self._set_target(self.units.to_radians(v))
-
-    def command_joints(self, indices: list[int], values: list[float]) -> None:
-        """Set the targets of some joints (indices into :data:`JOINT_NAMES`) to ``values``, arm
-        units already checked and inside the limits (the robot's per-action path: no arrays)."""
-        to_radians, act = self.units.joint_to_radians, self._actuator_list
-        with self.lock:
-            ctrl = self.data.ctrl
-            for i, v in zip(indices, values, strict=True):
-                ctrl[act[i]] = to_radians(i, v)
-            self._state.commanded = True
-
-    def _set_target(self, q: np.ndarray) -> None:
-        self.data.ctrl[self.index.actuator] = q
-        self._state.commanded = True
-
-    @gated  # no MuJoCo call left running at exit (exitgate)
-    def reset(self) -> None:
-        """Back to time 0 at the initial pose."""
-        with self.lock:
-            mujoco.mj_resetData(self.model, self.data)
-            self._state.commanded = False
-        if self.initial_pose is not None:
-            self.set_pose(self.initial_pose)
 
     # -- observers
     def viewer_observer(self, viewer: Any) -> Observer:
@@ -362,7 +200,7 @@ class Simulation:
         per-step arrays when ``trace`` is True, or (None) when ``n`` is at most
         :data:`TRACE_AUTO_STEPS`."""
         n = check_count(n, "n", unit=" steps", maximum=round(MAX_DURATION_S / self.timestep))
-        if viewer is None and not observers and not self.observers and not _keep(trace, n):
+        if viewer is None and not observers and not self.observers and not keep_trace(trace, n):
             with self.lock:  # nothing watches: MuJoCo's own loop, on the targets as set
                 q = None if self.was_commanded else self.units.to_radians(self.pose_array())
                 self._state.commanded = True
@@ -375,7 +213,7 @@ class Simulation:
             viewer=viewer,
             observers=observers,
             phase="step",
-            keep_trace=_keep(trace, n),
+            keep_trace=keep_trace(trace, n),
         )
 
     @gated  # no MuJoCo call left running at exit (exitgate)
@@ -384,24 +222,18 @@ class Simulation:
         target: Pose,
         duration: float,
         *,
-        profile: str | Profile = "linear",
+        shape: Shape | None = None,
         clip: bool = False,
+        profile: Shape | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Validate a move and compute all its targets: ``(start, targets)`` in arm units.
-        Nothing moves.
+        Nothing moves. ``shape``: as for :meth:`move_to`.
 
         Raises:
             JointNameError, JointValueError, JointLimitError, DurationError, SettingError.
         """
-        goal = self.units.pose_to_array(target, clip=clip)
-        n = steps_for(duration, self.timestep, maximum=MAX_MOVE_DURATION_S)
-        for warning in unit_warnings(goal):
-            log.warning("%s", warning)
-        if (w := duration_warning(float(duration), "move duration")) is not None:
-            log.warning("%s", w)
-        prof = get_profile(profile, self.units)
-        start = self.commanded_array()
-        return start, plan(start, goal, n, self.timestep, prof)
+        shape = move_shape(shape, profile)
+        return plan_joint_move(self, target, duration, shape, clip)
 
     @gated  # no MuJoCo call left running at exit (exitgate)
     def move_to(
@@ -412,13 +244,14 @@ class Simulation:
         tip: Sequence[float] | None = None,
         pitch: float | None = None,
         roll: float | None = None,
-        path: str = "line",
+        path: TipPath = "line",
         viewer: Any = None,
         observers: Sequence[Observer] = (),
-        profile: str | Profile = "linear",
+        shape: Shape | None = None,
         clip: bool = False,
         phase: str = "move",
         trace: bool | None = None,
+        profile: Shape | None = None,
     ) -> SegmentResult:
         """Move from the last commanded target to ``target`` (a pose) in ``duration`` s of
         simulated time; or move the gripper's tip to ``tip`` = (x, y, z) metres in the base
@@ -426,26 +259,31 @@ class Simulation:
         horizontal, -90 straight down) and ``roll``:
 
         * ``path="line"``: the tip follows a straight line (inverse kinematics at every step,
-          following the ``linear`` or ``minimum_jerk`` profile's timing); the whole line is
+          following the ``linear`` or ``minimum_jerk`` shape's timing); the whole line is
           solved before anything moves, and a point out of reach raises
           :class:`~so101sim.errors.UnreachableError`;
-        * ``path="joint"``: inverse kinematics for the end only, then a joint-space move with
-          ``profile``.
+        * ``path="joint"``: inverse kinematics for the end only, then a joint-space move of
+          that ``shape``.
+
+        ``shape``: how the targets go from start to goal (:mod:`so101sim.sim.profiles`):
+        ``"linear"`` (default), ``"minimum_jerk"``, ``"limited"`` (as fast as the servos allow,
+        no faster than ``duration``) or a function; ``profile=`` is its deprecated old name.
 
         The gripper keeps its target in a tip move. Returns a :class:`SegmentResult`
         (commanded and reached pose, largest tracking error per joint; per-step arrays when
         ``trace`` is True, or None and the move is at most :data:`TRACE_AUTO_STEPS` steps).
-        Nothing moves if the target, duration or profile is invalid.
+        Nothing moves if the target, duration or shape is invalid.
         """
+        shape = move_shape(shape, profile)
         with self.lock:
             if tip is not None:
                 start, targets = self.plan_tip_move(
-                    tip, duration, pitch=pitch, roll=roll, path=path, profile=profile
+                    tip, duration, pitch=pitch, roll=roll, path=path, shape=shape
                 )
             else:
                 if target is None:
                     raise SettingError("move_to needs a target pose or tip=(x, y, z) metres")
-                start, targets = self.plan_move(target, duration, profile=profile, clip=clip)
+                start, targets = self.plan_move(target, duration, shape=shape, clip=clip)
             return self._segment("move", phase, start, targets, viewer, observers, trace)
 
     @gated  # no MuJoCo call left running at exit (exitgate)
@@ -456,38 +294,19 @@ class Simulation:
         *,
         pitch: float | None = None,
         roll: float | None = None,
-        path: str = "line",
-        profile: str | Profile = "linear",
+        path: TipPath = "line",
+        shape: Shape | None = None,
+        profile: Shape | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Plan a move of the tip (see :meth:`move_to`): ``(start, targets)`` in arm units.
         Nothing moves.
 
         Raises:
             UnreachableError: the tip (or, for a line, some point of it) cannot be reached.
-            DurationError, SettingError: a bad duration, path or profile.
+            DurationError, SettingError: a bad duration, path or shape.
         """
-        from ..kinematics import plan_line, solve_ik  # imported here: only tip moves need it
-        from ..kinematics.paths import MAX_LINE_STEPS
-
-        _ = self.kinematics  # held here, so that the planner's calls share it
-        check_choice(path, "path", ("line", "joint"))
-        n = steps_for(_required(duration), self.timestep, maximum=MAX_MOVE_DURATION_S)
-        if path == "line" and n > MAX_LINE_STEPS:  # a model with a very short timestep
-            raise SettingError(
-                f"a straight tip line of {duration:g} s is {n} physics steps of "
-                f"{self.timestep * 1000:g} ms; expected at most {MAX_LINE_STEPS} steps "
-                f"({MAX_LINE_STEPS * self.timestep:g} s with this model): split it into "
-                "shorter lines, or use path='joint'"
-            )
-        start = self.commanded_array()
-        if path == "joint":
-            goal = solve_ik(tip, pitch=pitch, roll=roll, initial=start, model=self.model)
-            prof = get_profile(profile, self.units)
-            return start, plan(start, goal.values, n, self.timestep, prof)
-        line = plan_line(
-            start, tip, fractions(profile, n), pitch=pitch, roll=roll, model=self.model
-        )
-        return start, line.targets
+        shape = move_shape(shape, profile)
+        return plan_tip_move(self, tip, duration, pitch=pitch, roll=roll, path=path, shape=shape)
 
     @gated  # no MuJoCo call left running at exit (exitgate)
     def tip(self) -> TipPose:
@@ -531,7 +350,7 @@ class Simulation:
     @gated  # no MuJoCo call left running at exit (exitgate)
     def run_targets(
         self,
-        kind: str,
+        kind: SegmentKind,
         phase: str,
         start: np.ndarray,
         targets: np.ndarray,
@@ -548,7 +367,7 @@ class Simulation:
 
     def _segment(
         self,
-        kind: str,
+        kind: SegmentKind,
         phase: str,
         start: np.ndarray,
         targets: np.ndarray,
@@ -557,8 +376,8 @@ class Simulation:
         trace: bool | None,
     ) -> SegmentResult:
         t0 = self.time
-        keep = _keep(trace, len(targets))
-        errors = _ErrorTracker(self.units, start)
+        keep = keep_trace(trace, len(targets))
+        errors = ErrorTracker(self.units, start)
         tr = self.advance(
             targets, viewer=viewer, observers=[*observers, errors], phase=phase, keep_trace=keep
         )
@@ -577,47 +396,4 @@ class Simulation:
             times=tr.time.copy(),
             commanded=self.units.from_radians(tr.ctrl) if keep else empty,
             measured=self.units.from_radians(tr.qpos) if keep else empty,
-        )
-
-
-TRACE_AUTO_STEPS = 60_000
-"""Segments of at most this many steps (two minutes at 2 ms) keep their per-step trace unless
-told otherwise; longer ones keep only their summary, so memory stays flat."""
-
-
-def _keep(trace: bool | None, n: int) -> bool:
-    return n <= TRACE_AUTO_STEPS if trace is None else bool(trace)
-
-
-class _ErrorTracker(Observer):
-    """The largest |commanded - measured| per joint (arm units) and the last commanded target,
-    computed block by block, so a segment needs no per-step arrays for its summary."""
-
-    def __init__(self, units: ArmUnits, start: np.ndarray) -> None:
-        self.units = units
-        self.max = np.zeros(len(start))
-        self.last = np.asarray(start, dtype=float)
-
-    def on_steps(self, trace: Trace, phase: str) -> None:
-        commanded = self.units.from_radians(trace.ctrl)
-        measured = self.units.from_radians(trace.qpos)
-        # along contiguous rows: NumPy reduces them several times faster than columns
-        error = np.ascontiguousarray(np.abs(commanded - measured).T)
-        self.max = np.maximum(self.max, error.max(axis=1))
-        self.last = commanded[-1]
-
-
-def _required(duration: float | None) -> float:
-    if duration is None:
-        raise DurationError("duration is missing; expected the move's length in seconds > 0")
-    return duration
-
-
-def _check_data(model: mujoco.MjModel, data: mujoco.MjData) -> None:
-    """Raise ModelError if ``data`` was not made for ``model`` (their sizes differ)."""
-    sizes = ("nq", "nv", "nu", "na", "nbody")
-    if any(getattr(data.model, s) != getattr(model, s) for s in sizes):
-        raise ModelError(
-            "the MjData was made for another model (nq/nv/nu/nbody differ); expected "
-            "mujoco.MjData(model) of the same model"
         )

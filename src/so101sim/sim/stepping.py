@@ -3,7 +3,7 @@ clock live in :mod:`.observers`, and are importable from here too).
 
 Every MuJoCo step so101sim takes goes through one of the two entry points of this kernel,
 each in blocks, in C, inside the exit gate (:mod:`so101sim.exitgate`), with one divergence
-check (:func:`_check_divergence`): :func:`step_block` (every step's state recorded, through
+check (:mod:`.divergence`): :func:`step_block` (every step's state recorded, through
 ``mujoco.rollout``: the simulation's :func:`advance`, the robust preflight's rollouts) and
 :func:`advance_unobserved` (nothing recorded, ``mj_step(nstep)``: a lockstep robot, an environment's
 step, the pose finder, ``Simulation.step`` with nothing watching).
@@ -34,10 +34,12 @@ import mujoco
 import numpy as np
 from mujoco import rollout as _rollout
 
-from ..errors import SimulationDivergedError
+from ..errors import ModelError
 from ..exitgate import mujoco_call
 from ..model.load import arm_index
 from ..model.twin import Twin, contact_twin
+from .batch import BatchStepper  # the kernel for many models at once, importable from here
+from .divergence import _DIVERGENCE_WARNINGS, _STATE_SPEC, ADVICE, _check_divergence, _warnings
 from .observers import (  # the kernel's observers, importable from here as before
     MAX_PLAYBACK_SPEED,
     MAX_VIEWER_PERIOD,
@@ -50,13 +52,7 @@ from .observers import (  # the kernel's observers, importable from here as befo
 
 log = logging.getLogger(__name__)
 
-_STATE_SPEC = mujoco.mjtState.mjSTATE_FULLPHYSICS
 _ROLLOUT_MIN_STEPS = 48  # below this, a Python loop costs less than rollout's per-call setup
-_DIVERGENCE_WARNINGS = (
-    mujoco.mjtWarning.mjWARN_BADQACC,
-    mujoco.mjtWarning.mjWARN_BADQVEL,
-    mujoco.mjtWarning.mjWARN_BADQPOS,
-)
 
 
 def measured_radians(m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
@@ -68,59 +64,6 @@ def measured_radians(m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
 _CHUNK = 4096
 """Physics steps per block at most: blocks of this size bound the memory a run needs, however
 long it is (the per-step trace aside, which is kept only when asked for)."""
-
-
-def _first_bad_step(states: np.ndarray, t0: float, dt: float, qpos_cols: np.ndarray) -> int | None:
-    """Index of the first step of a block whose state is not a continuation of the run: time
-    that went back (MuJoCo reset the data after a bad acceleration) or a NaN/inf joint angle."""
-    k = len(states)
-    expected = t0 + dt * np.arange(1, k + 1)
-    bad = (states[:, 0] < expected - 0.5 * dt) | ~np.isfinite(states[:, qpos_cols]).all(axis=1)
-    hits = np.flatnonzero(bad)
-    return int(hits[0]) if hits.size else None
-
-
-ADVICE = "Expected stable physics: check the model's gains, timestep and targets"
-"""The end of a divergence message: what to do about it (a caller may give its own)."""
-
-
-def _check_divergence(
-    m: mujoco.MjModel,
-    d: mujoco.MjData,
-    states: np.ndarray,
-    start_state: np.ndarray,
-    qpos_cols: np.ndarray,
-    advice: str = ADVICE,
-) -> None:
-    """THE divergence check of every stepping path (:func:`step_block`; :func:`advance_unobserved`
-    steps a diverged block again to come here). Raise SimulationDivergedError if the block of
-    ``states`` (FULLPHYSICS, one row per step) diverged, after putting ``d`` back to the last
-    good state (the state when it happened); ``advice`` ends the message."""
-    warned = [w for w in _DIVERGENCE_WARNINGS if d.warning[w].number > 0]
-    t0, dt = float(start_state[0]), float(m.opt.timestep)
-    i = _first_bad_step(states, t0, dt, qpos_cols)
-    if i is None and not warned:
-        return
-    if i is None:  # warned without a visible jump (MuJoCo reset on the last step)
-        i = len(states) - 1
-    good = states[i - 1] if i > 0 else start_state
-    mujoco.mj_setState(m, d, good, _STATE_SPEC)
-    mujoco.mj_forward(m, d)
-    when = float(good[0]) + dt
-    if warned:
-        w = warned[0]
-        cause = (
-            f"MuJoCo warned {mujoco.mjtWarning(w).name} (index {d.warning[w].lastinfo}) and "
-            "would have reset the state"
-        )
-    else:
-        cause = "the joint angles hold NaN or inf"
-    for w in warned:
-        d.warning[w].number = 0
-    raise SimulationDivergedError(
-        f"the simulation diverged at t = {when:.3f} s: {cause}; the state is left as it was "
-        f"at t = {float(good[0]):.3f} s. {advice}"
-    )
 
 
 _local = threading.local()
@@ -281,8 +224,17 @@ def step_block(
                 states = _step_block(m, d, ctrl_full, s0, None)
             else:
                 states = _step_twin(m, d, twin, ctrl_full, s0, contact_counts, actuator_forces)
-        _check_divergence(m, d, states, s0, 1 + arm_index(m).qpos, advice)
+        _check_divergence(m, d, states, s0, _watched_qpos(m), advice)
     return states
+
+
+def _watched_qpos(m: mujoco.MjModel) -> np.ndarray:
+    """The state columns the divergence check reads: the arm's joint angles, or every ``qpos``
+    of a model that is not an SO-101 (the servo bench)."""
+    try:
+        return 1 + arm_index(m).qpos
+    except ModelError:
+        return 1 + np.arange(m.nq)
 
 
 def _block_size(observers: Sequence[Observer], now: float, dt: float, left: int) -> int:
@@ -352,10 +304,6 @@ def state_size(m: mujoco.MjModel) -> int:
     if size is None:
         size = _state_sizes[m] = mujoco.mj_stateSize(m, _STATE_SPEC)
     return size
-
-
-def _warnings(d: mujoco.MjData) -> int:
-    return sum(d.warning[w].number for w in _DIVERGENCE_WARNINGS)
 
 
 def advance(
@@ -433,6 +381,7 @@ __all__ = [
     "MAX_PLAYBACK_SPEED",
     "MAX_VIEWER_PERIOD",
     "MIN_PLAYBACK_SPEED",
+    "BatchStepper",
     "Observer",
     "Pacer",
     "Trace",

@@ -21,9 +21,10 @@ Works on a server with no display and no GPU (the browser draws); needs the ``we
 * :mod:`.pose`: :class:`PoseStudio` (one slider per joint, the tip, copy buttons, warnings
   when the arm is in the floor or the table).
 
-An output layer: may import ``so101sim.sim``, ``so101sim.kinematics``, ``so101sim.model``,
-``so101sim.units``, the base modules and ``so101sim.viewer`` (the pose finder's formats and
-warnings); viser and mjviser only when a studio starts.
+May import: ``so101sim.viewer`` (the pose finder's watcher, scene and warnings),
+``so101sim.recording``, ``so101sim.motion``, ``so101sim.sim``, ``so101sim.kinematics``,
+``so101sim.model``, ``so101sim.units`` and the base modules; viser and mjviser only when a
+studio starts.
 """
 
 from __future__ import annotations

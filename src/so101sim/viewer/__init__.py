@@ -1,8 +1,10 @@
 """The interactive viewer: MuJoCo's passive viewer on a run, and the pose finder.
 
-An output layer: may import ``so101sim.sim``, ``so101sim.kinematics``, ``so101sim.model``, the
-base modules and ``so101sim.recording`` (the draft meshes). Modules: :mod:`.passive`
+Modules: :mod:`.passive`
 (``open_viewer``, ``has_display``, ``choose_viewer``), :mod:`.posefinder` (``so101sim pose``).
+
+May import: ``so101sim.recording`` (the draft meshes), ``so101sim.motion``, ``so101sim.sim``,
+``so101sim.kinematics``, ``so101sim.model``, ``so101sim.units`` and the base modules.
 """
 
 from .passive import (

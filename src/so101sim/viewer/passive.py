@@ -23,7 +23,7 @@ import sys
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal, get_args
 
 import mujoco
 import numpy as np
@@ -95,7 +95,9 @@ def frame_arm(cam: Any) -> None:
     cam.lookat[:] = ARM_LOOKAT
 
 
-VIEWER_QUALITIES = ("auto", "draft", "full")
+ViewerQuality = Literal["auto", "draft", "full"]
+"""How a viewer draws the arm (``"auto"``: the draft meshes on a CPU renderer)."""
+VIEWER_QUALITIES: tuple[str, ...] = get_args(ViewerQuality)
 """What a mirrored viewer draws: ``"draft"`` (the simplified meshes the recorder ships, no
 shadows or reflections), ``"full"`` (the model as it is), or ``"auto"`` (draft when OpenGL renders
 on the CPU, e.g. Mesa llvmpipe in a VM, WSL or a remote desktop; full on a GPU)."""
@@ -230,7 +232,7 @@ def copy_state(source: mujoco.MjData, dest: mujoco.MjData) -> None:
     dest.time = source.time
 
 
-def mirror_model(m: mujoco.MjModel, quality: str = "auto") -> mujoco.MjModel:
+def mirror_model(m: mujoco.MjModel, quality: ViewerQuality = "auto") -> mujoco.MjModel:
     """The model a mirrored viewer draws ``m`` with: ``quality`` as :data:`VIEWER_QUALITIES`
     says (``"auto"``: draft when OpenGL renders on the CPU). Same bodies and joints as ``m``;
     ``m`` itself is never changed."""
@@ -286,7 +288,7 @@ def open_viewer(
     show_ui: bool = False,
     key_callback: Any = None,
     mirror: bool = False,
-    quality: str = "auto",
+    quality: ViewerQuality = "auto",
 ) -> Iterator[Any]:
     """Open MuJoCo's passive viewer on ``(m, d)``, framed on the arm; closes it on exit.
 

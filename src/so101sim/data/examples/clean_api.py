@@ -11,7 +11,7 @@ sim = Simulation()  # the shipped SO-101, resting in its starting pose
 for result in (
     sim.move_to(ZERO_POSE, 2.0, phase="to_zero"),
     sim.hold(2.0),
-    sim.move_to(STARTING_POSE, 2.0, profile="minimum_jerk", phase="return"),
+    sim.move_to(STARTING_POSE, 2.0, shape="minimum_jerk", phase="return"),
 ):
     joint, error = result.worst_tracking_error
     print(f"{result.phase:8s} {result.steps} steps, ends t={result.end_time:.3f} s, "

@@ -1,209 +1,21 @@
-"""Checking what comes from a user: numbers (durations, rates, counts, sizes), choices and paths.
-
-One place for "a finite number in this range", so that every check says the same kind of
-thing ("what was wrong, what was expected") and every number that sizes an allocation (a
-duration that becomes a step count, a frame size, a rate) is bounded before it is used.
-
-Each function returns the value converted (``float`` or ``int``) or raises the error class it
-is given, a :class:`~so101sim.errors.SettingError` by default. It imports nothing of so101sim
-but the errors, so any layer may use it.
-
-Paths, one check for each direction, used by every command and function that reads or writes
-a file the user names: :func:`check_input_file` (a file to read: the model, a script) and
-:func:`check_output_path` (a file to write: videos, plots, logs, the workspace picture). Both
-refuse an empty path and names or paths longer than the file system allows (``NAME_MAX`` and
-``PATH_MAX`` from ``os.pathconf``) before anything touches the file system, so no ``OSError``
-("File name too long") escapes as a traceback.
-"""
+"""Checking paths from a user, one check for each direction: :func:`check_input_file` (a file
+to read: the model, a script) and :func:`check_output_path` (a file to write: videos, plots,
+logs, the workspace picture). Both refuse an empty path and names or paths longer than the file
+system allows (``NAME_MAX`` and ``PATH_MAX`` from ``os.pathconf``) before anything touches the
+file system, so no ``OSError`` ("File name too long") escapes as a traceback."""
 
 from __future__ import annotations
 
 import contextlib
-import math
-import numbers
 import os
-import reprlib
 import stat
-from collections.abc import Iterable, Sequence
+import time
+from collections.abc import Sequence
 from pathlib import Path
 
-from .errors import DurationError, OutputPathError, RateError, SettingError
+from ..errors import OutputPathError, SettingError
+from .numbers import shown
 
-MAX_DURATION_S = 24 * 3600.0
-"""The longest duration accepted, in simulated seconds (one day: 43.2 million physics steps at
-the shipped model's 2 ms)."""
-
-MAX_RATE_HZ = 10_000.0
-"""The highest rate (goals, frames or ticks per second) accepted."""
-
-
-def is_real(value: object) -> bool:
-    """True for a real number (int, float, NumPy scalar) or a 0-d array or tensor holding one
-    (NumPy's, or a framework's with ``ndim == 0`` and ``__float__``, as LeRobot sends); False
-    for bools, strings and anything else."""
-    if isinstance(value, numbers.Real):
-        return not isinstance(value, bool)
-    if getattr(value, "ndim", None) != 0 or not hasattr(value, "__float__"):
-        return False
-    dtype = str(getattr(value, "dtype", ""))
-    return not any(k in dtype for k in ("bool", "complex", "str", "object"))
-
-
-def shown(value: object) -> str:
-    """``repr(value)`` shortened for a message (a huge int or a long string stays readable)."""
-    if isinstance(value, int) and value.bit_length() > 64:
-        digits = len(str(value)) if value.bit_length() < 10_000 else "thousands of"
-        return f"an integer of {digits} digits"
-    return reprlib.repr(value)
-
-
-def _as_float(value: object, what: str, unit: str, expected: str, error: type[Exception]) -> float:
-    if not is_real(value):
-        raise error(f"{what} = {shown(value)} is not a number; expected {expected}")
-    try:
-        v = float(value)  # type: ignore[arg-type]
-    except OverflowError:  # an int too big for a float
-        raise error(f"{what} = {shown(value)} is too large; expected {expected}") from None
-    if not math.isfinite(v):
-        raise error(f"{what} = {v}{unit} is not finite; expected {expected}")
-    return v
-
-
-def check_range(
-    value: object,
-    what: str,
-    *,
-    low: float = -math.inf,
-    high: float = math.inf,
-    low_open: bool = False,
-    unit: str = "",
-    expected: str | None = None,
-    error: type[Exception] = SettingError,
-) -> float:
-    """``value`` as a float if it is a finite number with ``low <= value <= high`` (``low <
-    value`` when ``low_open``); else raise ``error`` naming ``what``, the value and the range.
-
-    ``unit`` is appended to numbers in the message (``" s"``, ``" Hz"``); ``expected`` replaces
-    the generated description of the valid range.
-    """
-    if expected is None:
-        expected = _describe(low, high, low_open, unit)
-    v = _as_float(value, what, unit, expected, error)
-    too_low = v <= low if low_open else v < low
-    if too_low or v > high:
-        raise error(f"{what} = {v}{unit} is invalid; expected {expected}")
-    return v
-
-
-def _describe(low: float, high: float, low_open: bool, unit: str) -> str:
-    if math.isinf(low) and math.isinf(high):
-        return "a finite number"
-    if math.isinf(high):
-        return f"a finite number {'>' if low_open else '>='} {low:g}{unit}"
-    if math.isinf(low):
-        return f"a finite number <= {high:g}{unit}"
-    lo = f"> {low:g}{unit}" if low_open else f">= {low:g}{unit}"
-    return f"a finite number {lo} and <= {high:g}{unit}"
-
-
-def check_positive(
-    value: object,
-    what: str,
-    *,
-    maximum: float = math.inf,
-    unit: str = "",
-    allow_zero: bool = False,
-    error: type[Exception] = SettingError,
-) -> float:
-    """A finite number > 0 (>= 0 with ``allow_zero``) and <= ``maximum``."""
-    return check_range(
-        value, what, low=0.0, high=maximum, low_open=not allow_zero, unit=unit, error=error
-    )
-
-
-def check_duration(
-    value: object,
-    what: str = "duration",
-    *,
-    allow_zero: bool = False,
-    maximum: float = MAX_DURATION_S,
-) -> float:
-    """Seconds: a finite number > 0 (>= 0 with ``allow_zero``), at most ``maximum`` (one day
-    by default); raises :class:`~so101sim.errors.DurationError`."""
-    return check_range(
-        value,
-        what,
-        low=0.0,
-        high=maximum,
-        low_open=not allow_zero,
-        unit=" s",
-        expected=(
-            f"a finite number of seconds {'>= 0' if allow_zero else '> 0'}, at most {maximum:g} s"
-        ),
-        error=DurationError,
-    )
-
-
-def check_rate(value: object, what: str = "rate", *, maximum: float = MAX_RATE_HZ) -> float:
-    """A rate in Hz: a finite number > 0, at most ``maximum``; raises
-    :class:`~so101sim.errors.RateError`."""
-    return check_range(
-        value,
-        what,
-        low=0.0,
-        high=maximum,
-        low_open=True,
-        unit=" Hz",
-        expected=f"a finite number of times per second > 0, at most {maximum:g}",
-        error=RateError,
-    )
-
-
-def check_count(
-    value: object,
-    what: str,
-    *,
-    minimum: int = 0,
-    maximum: int | None = None,
-    even: bool = False,
-    unit: str = "",
-    expected: str | None = None,
-    error: type[Exception] = SettingError,
-) -> int:
-    """A whole number (int or NumPy integer, not bool) in ``minimum..maximum`` (even if asked).
-    ``unit`` names what is counted (``" steps"``); ``expected`` replaces the generated
-    description of the valid values."""
-    fits = type(value) is int and minimum <= value and (maximum is None or value <= maximum)
-    if fits and not (even and value % 2):
-        return value  # type: ignore[return-value]  # the common case, no message composed
-    if expected is None:
-        top = f" and <= {maximum}" if maximum is not None else ""
-        what_of = f" of{unit}" if unit else ""
-        expected = f"{'an even' if even else 'a'} whole number{what_of} >= {minimum}{top}"
-    ok = isinstance(value, numbers.Integral) and not isinstance(value, bool)
-    if not ok:
-        raise error(f"{what} = {shown(value)} is not a whole number; expected {expected}")
-    n = int(value)  # type: ignore[arg-type]
-    text = shown(n)
-    number = text + unit if text == str(n) else text  # not "an integer of 20 digits pixels"
-    if n < minimum or (maximum is not None and n > maximum):
-        raise error(f"{what} = {number} is out of range; expected {expected}")
-    if even and n % 2:
-        raise error(f"{what} = {number} is odd; expected {expected}")
-    return n
-
-
-def check_choice(
-    value: object, what: str, choices: Iterable[str], *, error: type[Exception] = SettingError
-) -> str:
-    """``value`` if it is one of ``choices``, else raise listing them."""
-    valid = list(choices)
-    if not isinstance(value, str) or value not in valid:
-        raise error(f"unknown {what} {shown(value)}; valid {what}s are {', '.join(valid)}")
-    return value
-
-
-# ---------------------------------------------------------------------------- paths
 DEFAULT_NAME_MAX = 255
 """Bytes in a file name where the file system does not say (Linux, macOS and Windows: 255)."""
 DEFAULT_PATH_MAX = 4096
@@ -330,6 +142,43 @@ def temp_name(path: Path, name_max: int = DEFAULT_NAME_MAX) -> str:
     return f".{stem}{tail}"
 
 
+STALE_TEMP_S = 3600.0
+"""A temporary output file (:func:`temp_name`) whose process is gone and that was not written
+for this long (seconds) was left by a killed run: the next run of the same output deletes it."""
+
+
+def remove_stale_temps(path: Path, older_than: float = STALE_TEMP_S) -> list[Path]:
+    """Delete the temporary files of ``path`` (``.<stem>.<pid>.partial<suffix>``) that a
+    killed run left: their process is not running and they were last written more than
+    ``older_than`` seconds ago (a live writer, even one this machine cannot see, writes
+    more often than that). Returns those deleted; anything unsure is left."""
+    folder = path.parent if str(path.parent) else Path(".")
+    gone = []
+    now = time.time()
+    for f in folder.glob(f".*.partial{path.suffix}"):
+        stem, _, pid = f.name[1 : -len(f".partial{path.suffix}")].rpartition(".")
+        cut = path.stem.startswith(stem) and len(os.fsencode(f.name)) > 200  # stem cut to fit
+        if not pid.isdigit() or (stem != path.stem and not cut) or _running(int(pid)):
+            continue
+        with contextlib.suppress(OSError):  # gone already, or not ours to delete
+            if f.is_file() and not f.is_symlink() and now - f.stat().st_mtime > older_than:
+                f.unlink()
+                gone.append(f)
+    return gone
+
+
+def _running(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (OSError, OverflowError):  # another user's process, or not a pid here: unsure
+        return True
+    return True
+
+
 def check_output_path(
     path: object,
     *,
@@ -413,3 +262,36 @@ def _try_creating(p: Path, folder: Path, what: str, error: type[Exception]) -> N
     os.close(fd)
     with contextlib.suppress(OSError):
         os.unlink(tmp)
+
+
+def claim_path(tmp: Path, path: Path) -> None:
+    """Move the finished file ``tmp`` to ``path`` only if nothing is there: in one atomic
+    step (a hard link, which fails if anything is at ``path``, then ``tmp`` removed), or,
+    where the file system has no hard links, by creating ``path`` with ``O_EXCL`` and renaming
+    over it. Two processes claiming the same path: one wins, the other gets the error.
+
+    Raises:
+        OutputPathError: something appeared at ``path`` (``tmp`` is removed).
+    """
+    try:
+        os.link(tmp, path)  # EEXIST if anything is there, however it came
+    except FileExistsError:
+        _taken(tmp, path)
+    except OSError:  # no hard links here (FAT, some network file systems)
+        try:
+            os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+        except FileExistsError:
+            _taken(tmp, path)
+        os.replace(tmp, path)
+        return
+    tmp.unlink()
+
+
+def _taken(tmp: Path, path: Path) -> None:
+    with contextlib.suppress(OSError):
+        tmp.unlink()
+    raise OutputPathError(
+        f"{str(path)!r} appeared while this run wrote it (another process wrote the same "
+        "file?), so this run's file was not kept; expected a path no other run writes, or "
+        "--force to replace it"
+    )

@@ -1,0 +1,167 @@
+"""The episodes of ``so101sim dataset``, simulated on worker processes (or Ray tasks) and
+handed back in seed order.
+
+Each worker runs so101sim's :func:`~so101sim.envs.run.expert_frames` (plain arguments, so it
+imports nothing of LeRobot or of this plugin) and sends the episode's arrays back; at most
+``2 × workers`` episodes are in flight (the frames held in memory stay bounded). A worker
+starts with one thread for Mesa's CPU rasteriser (``LP_NUM_THREADS``): the workers already
+share the cores, and more threads only make them wait on each other. (Not OpenMP's thread
+count: NumPy's linear algebra rounds differently with another count, which changes the
+expert's plans, and the same seed must give the same episode whatever the worker count.)
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from multiprocessing import get_context
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from so101sim.errors import SettingError
+
+if TYPE_CHECKING:
+    from .dataset import DatasetSettings
+
+WORKER_THREADS = {"LP_NUM_THREADS": "1"}
+"""Set in each worker before it imports MuJoCo or starts OpenGL (unless already set)."""
+
+
+def worker_init() -> None:
+    """A worker's start: one llvmpipe thread (see the module's text)."""
+    for key, value in WORKER_THREADS.items():
+        os.environ.setdefault(key, value)
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One simulated episode as a worker hands it back."""
+
+    seed: int
+    success: bool
+    success_frame: int | None
+    states: np.ndarray  # (T, 6) float32
+    actions: np.ndarray  # (T, 6) float32
+    environment_state: np.ndarray | None = None  # (T, 7 * objects) float32
+    images: dict[str, np.ndarray] = field(default_factory=dict)  # camera -> (T, h, w, 3)
+    randomization: dict[str, Any] = field(default_factory=dict)
+    sim_seconds: float = 0.0
+    wall_seconds: float = 0.0
+
+
+def _simulate(settings: DatasetSettings, seed: int) -> tuple[Any, float]:
+    """In a worker: one episode (so101sim's, no LeRobot import) and its wall time."""
+    from so101sim.envs import expert_frames
+
+    start = time.perf_counter()
+    frames = expert_frames(
+        settings.task,
+        seed,
+        fps=settings.fps,
+        cameras=tuple(settings.cameras),
+        image_size=tuple(settings.image_size),
+        randomize=settings.randomize,
+        after_success_s=settings.after_success_s,
+    )
+    return frames, time.perf_counter() - start
+
+
+def simulate_episode(settings: DatasetSettings, seed: int) -> Episode:
+    """One episode of the task's expert from ``seed``."""
+    return _episode(settings, *_simulate(settings, seed))
+
+
+def _episode(settings: DatasetSettings, frames: Any, wall: float) -> Episode:
+    return Episode(
+        seed=frames.seed,
+        success=frames.success,
+        success_frame=frames.success_frame,
+        states=frames.states,
+        actions=frames.actions,
+        environment_state=frames.environment_state if settings.environment_state else None,
+        images=frames.images,
+        randomization=jsonable(frames.randomization),
+        sim_seconds=len(frames.actions) / settings.fps,
+        wall_seconds=wall,
+    )
+
+
+def jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _frames_kwargs(settings: DatasetSettings) -> dict[str, Any]:
+    return {
+        "fps": settings.fps,
+        "cameras": tuple(settings.cameras),
+        "image_size": tuple(settings.image_size),
+        "randomize": settings.randomize,
+        "after_success_s": settings.after_success_s,
+    }
+
+
+def episodes(settings: DatasetSettings, seeds: list[int]) -> Iterator[Episode]:
+    """The episodes of ``seeds``, in that order, simulated by ``settings.workers`` workers.
+    The workers run so101sim's :func:`~so101sim.envs.run.expert_frames` (plain arguments, so
+    they import nothing of LeRobot or of this plugin); this process turns each into an
+    :class:`Episode`."""
+    from so101sim.envs import expert_frames
+
+    kwargs = _frames_kwargs(settings)
+    if settings.use_ray:
+        try:
+            import ray
+        except ImportError as exc:
+            raise SettingError(
+                "--ray needs Ray in this Python; expected `pip install ray` (or leave --ray out)"
+            ) from exc
+        started = not ray.is_initialized()
+        if started:
+            ray.init(num_cpus=settings.workers, include_dashboard=False, log_to_driver=False)
+        try:
+            remote = ray.remote(num_cpus=1)(expert_frames)
+            refs = [remote.remote(settings.task, s, **kwargs) for s in seeds]
+            for ref in refs:
+                start = time.perf_counter()
+                yield _episode(settings, ray.get(ref), time.perf_counter() - start)
+        finally:
+            if started:
+                ray.shutdown()
+        return
+    if settings.workers == 1:
+        for s in seeds:
+            yield simulate_episode(settings, s)
+        return
+    ahead = 2 * settings.workers  # episodes in flight: bounds the frames held in memory
+    ctx = get_context("spawn")  # MuJoCo's GL contexts and torch do not survive a fork
+    with ProcessPoolExecutor(settings.workers, mp_context=ctx, initializer=worker_init) as pool:
+        pending: list[Any] = []
+        todo = iter(seeds)
+        try:
+            while True:
+                for s in todo:
+                    pending.append(pool.submit(expert_frames, settings.task, s, **kwargs))
+                    if len(pending) >= ahead:
+                        break
+                if not pending:
+                    return
+                start = time.perf_counter()
+                yield _episode(settings, pending.pop(0).result(), time.perf_counter() - start)
+        finally:
+            for fut in pending:
+                fut.cancel()
+
+
+__all__ = ["Episode", "episodes", "jsonable", "simulate_episode", "worker_init"]
