@@ -11,13 +11,9 @@ from __future__ import annotations
 import colorsys
 import io
 import os
-import queue
-import shutil
-import signal
 import socket
 import subprocess
 import sys
-import threading
 import time
 import urllib.request
 from pathlib import Path
@@ -28,114 +24,23 @@ import pytest
 pytest.importorskip("viser", reason="the web extra is not installed: pip install 'so101sim[web]'")
 pytest.importorskip("mjviser", reason="the web extra is not installed: pip install 'so101sim[web]'")
 
+from studio_helpers import (
+    BROWSER_WAIT,
+    cli,
+    env,
+    free_port,
+    page_ready,
+    screenshot,
+    start,
+    stop,
+    wait_until,
+)
+
 from so101sim import Simulation
 from so101sim.studio import Studio, StudioError
 from so101sim.studio.live import StudioObserver
-from so101sim.studio.server import Frame, Timeline
+from so101sim.studio.timeline import Frame, Timeline
 from so101sim.units import STARTING_POSE
-
-SRC = str(Path(__file__).resolve().parents[2] / "src")
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-CHROMEDRIVER = shutil.which("chromedriver")
-BROWSER_WAIT = 120.0  # seconds: software WebGL beside other jobs on a 2-core machine
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def cli(*args: str) -> list[str]:
-    return [sys.executable, "-m", "so101sim", *args]
-
-
-def env() -> dict[str, str]:
-    return {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
-
-
-class Lines:
-    """A subprocess's stdout, read line by line in a thread (never blocks the test)."""
-
-    def __init__(self, proc: subprocess.Popen) -> None:
-        self.queue: queue.Queue[str] = queue.Queue()
-        self.seen: list[str] = []
-        self.thread = threading.Thread(target=self._read, args=(proc.stdout,), daemon=True)
-        self.thread.start()
-
-    def _read(self, stream) -> None:
-        for line in stream:
-            self.queue.put(line)
-
-    def wait_for(self, predicate, timeout: float) -> str:
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            try:
-                line = self.queue.get(timeout=0.2)
-            except queue.Empty:
-                continue
-            self.seen.append(line)
-            if predicate(line):
-                return line
-        raise AssertionError(f"no such line within {timeout} s; got:\n{''.join(self.seen)}")
-
-
-def start(*args: str) -> tuple[subprocess.Popen, Lines]:
-    proc = subprocess.Popen(
-        cli(*args),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        env=env(),
-        start_new_session=True,  # its own process group: the test checks none is left
-    )
-    return proc, Lines(proc)
-
-
-def stop(proc: subprocess.Popen) -> int:
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            return proc.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-    return proc.returncode
-
-
-@pytest.fixture
-def browser(tmp_path):
-    """Headless chromium (software WebGL through SwiftShader) driven by selenium."""
-    if CHROMIUM is None or CHROMEDRIVER is None:
-        pytest.skip(
-            "chromium and chromedriver are not installed "
-            "(apt-get install -y chromium chromium-driver)"
-        )
-    webdriver = pytest.importorskip("selenium.webdriver", reason="selenium is not installed")
-    from selenium.webdriver.chrome.service import Service
-
-    options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
-    for flag in (
-        "--headless=new",
-        "--no-sandbox",
-        "--use-angle=swiftshader",
-        "--enable-unsafe-swiftshader",
-        "--no-first-run",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        "--disable-dev-shm-usage",
-        "--window-size=1280,800",
-        f"--user-data-dir={tmp_path / 'chromium-profile'}",
-    ):
-        options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
-    driver.set_page_load_timeout(60)
-    try:
-        yield driver
-    finally:
-        driver.quit()
 
 
 def arm_hue(model) -> float:
@@ -154,11 +59,46 @@ def arm_hue(model) -> float:
     return float(np.median(colours))
 
 
-def coloured_pixels(png: bytes, hue: float, tolerance: float = 0.06) -> int:
-    """Pixels of the screenshot with about ``hue`` (shaded: any brightness above 0.25)."""
+def _image(png: bytes) -> np.ndarray:
     import imageio.v3 as iio
 
-    img = iio.imread(io.BytesIO(png))[..., :3].astype(float) / 255.0
+    return iio.imread(io.BytesIO(png))[..., :3].astype(float) / 255.0
+
+
+def image_width(png: bytes) -> int:
+    return _image(png).shape[1]
+
+
+def image_area(png: bytes) -> int:
+    h, w = _image(png).shape[:2]
+    return h * w
+
+
+def floor_pixels(png: bytes, model) -> int:
+    """Pixels near one of the floor texture's two checker colours (a dark blue)."""
+    from so101sim.studio.look import _texture
+
+    floor = next(g for g in range(model.ngeom) if model.geom_type[g] == 0)
+    tex = _texture(model, int(model.geom_matid[floor])).reshape(-1, 3).astype(float) / 255.0
+    colours = np.unique(tex.round(2), axis=0)[:4]
+    img = _image(png)
+    near = np.zeros(img.shape[:2], bool)
+    for c in colours:
+        near |= np.abs(img - c).max(axis=-1) < 0.12
+    return int(near.sum())
+
+
+def arm_pixels(png: bytes, hue: float, tolerance: float = 0.06) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, columns) of the screenshot's pixels with about ``hue`` (shaded)."""
+    return np.nonzero(_hue_mask(_image(png), hue, tolerance))
+
+
+def coloured_pixels(png: bytes, hue: float, tolerance: float = 0.06) -> int:
+    """Pixels of the screenshot with about ``hue`` (shaded: any brightness above 0.25)."""
+    return int(_hue_mask(_image(png), hue, tolerance).sum())
+
+
+def _hue_mask(img: np.ndarray, hue: float, tolerance: float) -> np.ndarray:
     mx, mn = img.max(axis=-1), img.min(axis=-1)
     sat = np.where(mx > 0, (mx - mn) / np.maximum(mx, 1e-9), 0)
     r, g, b = img[..., 0], img[..., 1], img[..., 2]
@@ -168,34 +108,34 @@ def coloured_pixels(png: bytes, hue: float, tolerance: float = 0.06) -> int:
         / 6.0
     )
     near = np.minimum(np.abs(h - hue), 1 - np.abs(h - hue)) < tolerance
-    return int((near & (sat > 0.3) & (mx > 0.25)).sum())
-
-
-def wait_until(check, timeout: float, what: str):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        value = check()
-        if value:
-            return value
-        time.sleep(0.5)
-    raise AssertionError(f"{what} did not happen within {timeout} s")
+    return near & (sat > 0.3) & (mx > 0.25)
 
 
 # ---------------------------------------------------------------------------- browser
 def test_the_page_shows_the_arm_in_its_colour(browser, tmp_path):
+    """The page's own ready signal (the browser drew the arm), then one screenshot: the arm in
+    its colour, beside the panel (not under it), on the model's floor (not a white page)."""
     sim = Simulation()
     hue = arm_hue(sim.model)
     with Studio(sim.model, port=free_port()) as studio:
         sim.hold(0.1, observers=[StudioObserver(studio)])
         browser.get(studio.url)
-        shots: list[bytes] = []
-
-        def drawn() -> bool:
-            shots.append(browser.get_screenshot_as_png())
-            return coloured_pixels(shots[-1], hue) > 3000
-
-        wait_until(drawn, BROWSER_WAIT, "the arm drawn in its colour")
-        (tmp_path / "studio.png").write_bytes(shots[-1])
+        page_ready(browser)
+        assert studio.ready.ready.is_set()
+        png = screenshot(browser)
+        (tmp_path / "studio.png").write_bytes(png)  # to look at
+        pixels = arm_pixels(png, hue)
+        assert len(pixels[0]) > 1500
+        # the panel is docked at the right: the arm is drawn left of it, the view not under it
+        panel_left = browser.execute_script(
+            "const c = document.querySelector('canvas').getBoundingClientRect();return c.right;"
+        )
+        scale = image_width(png) / browser.execute_script("return window.innerWidth;")
+        assert np.percentile(pixels[1], 99) < panel_left * scale
+        assert panel_left < 0.85 * browser.execute_script("return window.innerWidth;")
+        # the model's floor: its checker's blue, and no white page behind the arm
+        floor = floor_pixels(png, sim.model)
+        assert floor > 0.1 * image_area(png), floor
         # the panel: time, phase, commanded vs measured angles
         text = browser.find_element("tag name", "body").text
         assert "phase hold" in text and "shoulder_lift" in text and "-98.0°" in text
@@ -207,9 +147,10 @@ def test_dragging_a_pose_slider_changes_the_printed_pose(browser):
     port = free_port()
     proc, out = start("pose", "--web", "--port", str(port))
     try:
-        out.wait_for(lambda s: f"http://127.0.0.1:{port}" in s, 60)
-        out.wait_for(lambda s: s.startswith("python:") and '"shoulder_pan": 0.0' in s, 60)
+        out.wait_for(lambda s: f"http://127.0.0.1:{port}" in s)
+        out.wait_for(lambda s: s.startswith("python:") and '"shoulder_pan": 0.0' in s)
         browser.get(f"http://127.0.0.1:{port}")
+        page_ready(browser)
         thumbs = wait_until(
             lambda: browser.find_elements("css selector", "[role=slider]"),
             BROWSER_WAIT,
@@ -219,14 +160,12 @@ def test_dragging_a_pose_slider_changes_the_printed_pose(browser):
         pan = thumbs[0]
         assert float(pan.get_attribute("aria-valuenow")) == pytest.approx(0.0)
         ActionChains(browser).click_and_hold(pan).move_by_offset(60, 0).release().perform()
-        line = out.wait_for(
-            lambda s: s.startswith("python:") and '"shoulder_pan": 0.0' not in s, 60
-        )
+        line = out.wait_for(lambda s: s.startswith("python:") and '"shoulder_pan": 0.0' not in s)
         moved = float(line.split('"shoulder_pan": ')[1].split(",")[0])
         assert moved > 5.0  # dragged to the right: a larger angle, within the limits
         assert moved == pytest.approx(float(pan.get_attribute("aria-valuenow")), abs=0.15)
-        out.wait_for(lambda s: s.startswith("toml:") and "shoulder_pan = " in s, 10)
-        tip = out.wait_for(lambda s: s.startswith("tip:"), 10)
+        out.wait_for(lambda s: s.startswith("toml:") and "shoulder_pan = " in s)
+        tip = out.wait_for(lambda s: s.startswith("tip:"))
         assert "pitch=" in tip
         # the page's copy buttons carry the same pose
         wait_until(
@@ -234,7 +173,7 @@ def test_dragging_a_pose_slider_changes_the_printed_pose(browser):
                 f"shoulder_pan = {moved}"
                 in browser.find_element("tag name", "body").get_attribute("innerHTML")
             ),
-            30,
+            BROWSER_WAIT,
             "the copy buttons showing the pose",
         )
     finally:
@@ -261,10 +200,10 @@ def test_the_timeline_scrubs_a_finished_run(browser):
         )
         timeline = thumbs[-1]
         timeline.send_keys(Keys.HOME)  # to the start of the run
-        wait_until(lambda: studio._play_time < 0.01, 30, "scrubbing to the start")
+        wait_until(lambda: studio._play_time < 0.01, BROWSER_WAIT, "scrubbing to the start")
         first = wait_until(
             lambda: "t = 0.0" in browser.find_element("tag name", "body").text and frames[0],
-            30,
+            BROWSER_WAIT,
             "the page showing t = 0",
         )
         assert "-98.0°" in browser.find_element("tag name", "body").text  # the rest pose
@@ -272,7 +211,9 @@ def test_the_timeline_scrubs_a_finished_run(browser):
         # play replays it to the end
         button = [b for b in browser.find_elements("tag name", "button") if b.text == "Play"]
         button[0].click()
-        wait_until(lambda: studio._play_time >= frames[-1].time - 1e-6, 60, "playing to the end")
+        wait_until(
+            lambda: studio._play_time >= frames[-1].time - 1e-6, BROWSER_WAIT, "playing to the end"
+        )
         assert not studio.playing
 
 
@@ -281,8 +222,8 @@ def test_ctrl_c_stops_the_server_and_leaves_no_process():
     port = free_port()
     proc, out = start("view", "--web", "--port", str(port))
     try:
-        out.wait_for(lambda s: f"http://127.0.0.1:{port}" in s, 60)
-        page = wait_until(lambda: _get(f"http://127.0.0.1:{port}"), 30, "the page being served")
+        out.wait_for(lambda s: f"http://127.0.0.1:{port}" in s)
+        page = wait_until(lambda: _get(f"http://127.0.0.1:{port}"), 60, "the page being served")
         assert b"<html" in page.lower()
     finally:
         code = stop(proc)
@@ -312,7 +253,7 @@ def test_a_port_in_use_is_one_clear_error_line_and_status_2(command):
             capture_output=True,
             text=True,
             env=env(),
-            timeout=120,
+            timeout=300,
         )
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
@@ -327,7 +268,7 @@ def test_run_web_runs_the_motion_and_stops_after_linger():
         capture_output=True,
         text=True,
         env=env(),
-        timeout=120,
+        timeout=300,
     )
     assert r.returncode == 0, r.stderr
     assert f"http://127.0.0.1:{port}" in r.stdout and "return [move" in r.stdout
@@ -390,7 +331,7 @@ def test_record_web_shows_the_students_script_live_at_real_time(tmp_path):
     r = subprocess.run(
         cli("record", str(script), "--web", "--port", str(port), "--linger", "0", "--",
             str(scene_path())),
-        capture_output=True, text=True, env=env(), timeout=180,
+        capture_output=True, text=True, env=env(), timeout=400,
     )  # fmt: skip
     assert r.returncode == 0, r.stderr
     assert f"http://127.0.0.1:{port}" in r.stdout
@@ -404,7 +345,7 @@ def test_demo_web_runs_the_episode_in_the_studio():
     port = free_port()
     r = subprocess.run(
         cli("demo", "pick_cube", "--web", "--port", str(port), "--linger", "0"),
-        capture_output=True, text=True, env=env(), timeout=180,
+        capture_output=True, text=True, env=env(), timeout=400,
     )  # fmt: skip
     assert r.returncode == 0, r.stderr
     assert f"http://127.0.0.1:{port}" in r.stdout and "pick_cube, seed 0: success" in r.stdout
@@ -412,11 +353,15 @@ def test_demo_web_runs_the_episode_in_the_studio():
 
 def test_a_bad_linger_or_port_is_refused_before_anything_runs():
     r = subprocess.run(
-        cli("run", "--web", "--linger", "-1"), capture_output=True, text=True, env=env(), timeout=60
+        cli("run", "--web", "--linger", "-1"),
+        capture_output=True,
+        text=True,
+        env=env(),
+        timeout=180,
     )
     assert r.returncode == 2 and "linger" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     r = subprocess.run(
         cli("view", "--web", "--port", "70000"), capture_output=True, text=True, env=env(),
-        timeout=60,
+        timeout=180,
     )  # fmt: skip
     assert r.returncode == 2 and "port" in r.stderr

@@ -141,15 +141,28 @@ def test_watch_poses_reports_where_a_drag_leaves_the_arm():
 
 def test_cli_pose_prints_each_pose_as_a_dict_and_as_toml(monkeypatch, capsys):
     made = {}
+    printed: list[str] = []
+    original = print
+
+    def keep(*args, **kwargs):
+        printed.append(" ".join(map(str, args)))
+        original(*args, **kwargs)
+
+    def wait_for(text: str, timeout: float = 120.0) -> None:
+        """The printed pose is the event (a busy machine is slow to read the arm)."""
+        end = time.monotonic() + timeout
+        while time.monotonic() < end and not any(text in s for s in printed):
+            time.sleep(0.05)
 
     def fake_managed_viewer(m, d):
         """MuJoCo's managed viewer, paused, a person dragging the joint sliders: qpos set,
-        left a moment (the watcher reads 15 times a second), then the window closed."""
+        left until the pose is printed (the watcher reads 15 times a second), then closed."""
         made["model"] = m
-        time.sleep(0.5)
+        wait_for("# pose 1")
         d.qpos[arm_index(m).qpos] = _rad(SLIDER_POSE)
-        time.sleep(0.8)
+        wait_for("# pose 2")
 
+    monkeypatch.setattr("builtins.print", keep)
     monkeypatch.setattr("so101sim.viewer.view", fake_managed_viewer)
     monkeypatch.setattr("so101sim.viewer.has_display", lambda: True)
     assert cli.main(["pose"]) == 0
@@ -211,7 +224,7 @@ def test_dragging_a_joint_slider_in_the_viewer_prints_the_pose(xvfb, tmp_path):
     if shutil.which("xdotool") is None:
         pytest.skip("xdotool is not installed (apt-get install -y xdotool)")
     env = {**os.environ, "DISPLAY": xvfb}
-    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[1] / "src")
+    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[2] / "src")  # this checkout's
     proc = subprocess.Popen(
         [sys.executable, "-m", "so101sim", "pose"],
         stdout=subprocess.PIPE,
@@ -235,40 +248,56 @@ def test_dragging_a_joint_slider_in_the_viewer_prints_the_pose(xvfb, tmp_path):
             if line.startswith("python: ")
         ]
 
+    def wait_for(check, timeout: float) -> bool:
+        """An event (a window, a printed pose) with a generous deadline: a loaded machine."""
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if check():
+                return True
+            time.sleep(0.25)
+        return False
+
     try:
         window = ""
-        for _ in range(120):  # the window (software OpenGL beside other jobs: slow to open)
-            window = xdo("search", "--pid", str(proc.pid), "--name", "MuJoCo")
-            window = window.split("\n")[0].strip()
-            if window and pans():
-                break
-            time.sleep(0.5)
-        assert window and pans() == [0.0], "".join(lines)
-        # pause: the left panel's Simulation section, its "Pause" choice (a click, not the Space
-        # key: a key goes to whichever window has the focus)
-        for _ in range(2):  # a radio choice: a second click keeps it (the first may be lost)
+
+        def window_and_first_pose() -> bool:
+            nonlocal window
+            found = xdo("search", "--pid", str(proc.pid), "--name", "MuJoCo")
+            window = found.split("\n")[0].strip()
+            return bool(window and pans())
+
+        # the window (software OpenGL beside other jobs: slow to open) and the first pose
+        assert wait_for(window_and_first_pose, 240), "".join(lines)
+        assert pans() == [0.0], "".join(lines)
+
+        def pause() -> None:
+            """The left panel's Simulation section, its "Pause" choice (a click, not the Space
+            key: a key goes to whichever window has the focus); a radio choice: clicking it
+            again keeps it (a click the busy viewer lost is made again)."""
             xdo("mousemove", "--window", window, "42", "427", "click", "1")
-            time.sleep(0.7)
+            time.sleep(0.7)  # the viewer draws a frame before the next input
+
+        pause()
+        pause()
         # the right panel's Joint section (collapsed at first): its sliders appear below it
         width = int(xdo("getwindowgeometry", "--shell", window).split("WIDTH=")[1].split()[0])
         header_x = width - 150
         xdo("mousemove", "--window", window, str(header_x), "21", "click", "1")
         time.sleep(1.0)
         x0, x1 = width - 80, width - 40  # shoulder_pan's slider, dragged to the right
-        for attempt in range(3):  # a drag the busy viewer did not see (it draws slowly on a
-            # loaded CPU: the section may not be drawn yet) is made again, more slowly
-            pause = 0.3 * (attempt + 1)
+        end = time.monotonic() + 300  # a drag the busy viewer did not see (it draws slowly
+        attempt = 0  # on a loaded CPU: the section may not be drawn yet) is made again,
+        while len(pans()) < 2 and time.monotonic() < end:  # more slowly, until the deadline
+            attempt += 1
+            if attempt > 1:
+                pause()
+            step_pause = min(0.3 * attempt, 2.0)  # the viewer draws a frame between the steps
             for x, y in ((x0, 51), (x0 + 10, 51), (x1, 51)):
                 step = ["mousemove", "--window", window, str(x), str(y)]
                 xdo(*step, *(["mousedown", "1"] if x == x0 else []))
-                time.sleep(pause)
+                time.sleep(step_pause)
             xdo("mouseup", "1")
-            for _ in range(40):
-                if len(pans()) >= 2:
-                    break
-                time.sleep(0.5)
-            if len(pans()) >= 2:
-                break
+            wait_for(lambda: len(pans()) >= 2, 30)  # the printed pose: the event
         if len(pans()) < 2:
             with contextlib.suppress(Exception):
                 from PIL import ImageGrab

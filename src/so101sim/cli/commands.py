@@ -41,23 +41,16 @@ def cmd_pose(args: argparse.Namespace) -> int:
         INSTRUCTIONS,
         check_display,
         find_poses,
-        format_python,
-        format_toml,
         pose_scene,
     )
+    from .studio import format_pose
 
     check_display()  # without a display its error is all the user sees
     m, d = pose_scene(args.model)
     say(INSTRUCTIONS, flush=True)
 
     def show(change: Any) -> None:
-        say(
-            f"\n# pose {change.number} (t = {change.time:.1f} s)\n"
-            f"python: {format_python(change.pose)}\n"
-            f"toml:   {format_toml(f'pose_{change.number}', change.pose)}"
-            + (f"\ntip:    {change.tip.format()}" if change.tip is not None else ""),
-            flush=True,
-        )
+        say(format_pose(change, with_time=True), flush=True)
 
     find_poses(m, d, show)  # MuJoCo's viewer until its window is closed
     return 0

@@ -3,15 +3,20 @@ studio in a browser (:mod:`so101sim.studio`). Like :mod:`so101sim.cli` it only p
 prints: :func:`add_web_options` adds ``--web``, ``--host``, ``--port`` and ``--linger`` to a
 command's parser, and each ``*_web`` function is what that command runs with ``--web``. It
 prints the page's URL, then serves until Ctrl-C, or until the run's end plus ``--linger``
-seconds. Ctrl-C while serving ends the command with status 0 (the page was the point); during
-a run it ends it as Ctrl-C ends any run (status 130, the output files finished).
+seconds. Ctrl-C (or SIGTERM, SIGHUP) while serving ends the command with status 0 (the page
+was the point); during a run it ends it as Ctrl-C ends any run (status 130, the output files
+finished). While serving, a signal only sets a flag that the serving loop reads
+(:class:`_UntilSignal`): raised as an exception it could land inside any callback running in
+the main thread (a ``WeakSet``'s, the garbage collector's) and be swallowed there.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import signal
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
@@ -34,7 +39,8 @@ def add_web_options(p: argparse.ArgumentParser, *, linger: bool = True) -> None:
         "--host",
         default=DEFAULT_HOST,
         help=f"address the studio listens on (default {DEFAULT_HOST}: this machine only; "
-        "0.0.0.0: every network interface)",
+        "0.0.0.0: every network interface, with a warning: anyone who reaches this machine "
+        "can then move the arm)",
     )
     g.add_argument(
         "--port", type=int, default=DEFAULT_PORT, help=f"the studio's port (default {DEFAULT_PORT})"
@@ -61,24 +67,62 @@ def in_notebook() -> bool:
     return False
 
 
-def _stopped(exc: BaseException) -> bool:
-    """Whether ``exc`` is Ctrl-C (or SIGTERM/SIGHUP) ending a studio: the signal's
-    KeyboardInterrupt, or the error it became inside a library call it interrupted (viser's
-    threads and locks, a C call's argument conversion)."""
-    from .output import SIGNALS
-
-    return isinstance(exc, KeyboardInterrupt) or SIGNALS.raised is not None
-
-
-def announce(url: str, what: str = "the studio") -> None:
-    """Print the page's URL (a link in a notebook)."""
+def announce(url: str, what: str = "the studio", studio: Any = None) -> None:
+    """Print the page's URL (a link in a notebook), the addresses the studio really listens
+    on, and a warning (stderr) when they reach beyond this machine."""
+    if studio is not None and studio.warning:
+        say(f"so101sim: warning: {studio.warning}", file=sys.stderr, flush=True)
+    where = ""
+    if studio is not None:
+        scope = "beyond this machine" if studio.warning else "this machine only"
+        where = f"; listening on {', '.join(studio.listening)}, {scope}"
     if in_notebook():
         with contextlib.suppress(Exception):
             from IPython.display import HTML, display
 
-            display(HTML(f'{what}: <a href="{url}" target="_blank">{url}</a>'))
+            display(HTML(f'{what}: <a href="{url}" target="_blank">{url}</a>{where}'))
             return
-    say(f"{what}: open {url} in a web browser (Ctrl-C to stop)", flush=True)
+    say(f"{what}: open {url} in a web browser (Ctrl-C to stop{where})", flush=True)
+
+
+class _UntilSignal:
+    """While serving: SIGINT, SIGTERM and SIGHUP set :attr:`signum` (and interrupt the
+    studio's waits) instead of raising, and the serving loop stops when it sees it. The
+    handlers found are put back on the way out."""
+
+    NAMES = ("SIGINT", "SIGTERM", "SIGHUP")
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self.studio: Any = None
+        self._previous: dict[int, Any] = {}
+
+    def __bool__(self) -> bool:
+        return self.signum is not None
+
+    def _handle(self, signum: int, frame: object) -> None:
+        if self.signum is None:
+            self.signum = signum
+        if self.studio is not None:
+            self.studio.interrupt()
+
+    def __enter__(self) -> _UntilSignal:
+        if threading.current_thread() is threading.main_thread():
+            for name in self.NAMES:
+                if (signum := getattr(signal, name, None)) is not None:
+                    self._previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for signum, previous in self._previous.items():
+            signal.signal(signum, previous)
+        self._previous.clear()
+
+    def sleep(self, seconds: float) -> None:
+        """Wait ``seconds`` of wall-clock time, or until a signal."""
+        end = time.monotonic() + seconds
+        while self.signum is None and (left := end - time.monotonic()) > 0:
+            time.sleep(min(left, 0.1))
 
 
 def _studio(model: Any, args: argparse.Namespace, **kwargs: Any) -> Studio:
@@ -86,7 +130,7 @@ def _studio(model: Any, args: argparse.Namespace, **kwargs: Any) -> Studio:
 
     studio = Studio(model, host=args.host, port=args.port, **kwargs)
     try:
-        announce(studio.url)
+        announce(studio.url, studio=studio)
     except BaseException:  # Ctrl-C while the URL is printed: nothing left serving
         studio.close()
         raise
@@ -102,7 +146,7 @@ def _serving(studio: Studio) -> Iterator[Studio]:
 
 
 def _linger(studio: Studio, seconds: float) -> None:
-    """Keep the finished run on the page for ``seconds`` (Ctrl-C: at once)."""
+    """Keep the finished run on the page for ``seconds`` (a signal: at once)."""
     from ..studio.server import check_linger
 
     seconds = check_linger(seconds)
@@ -110,34 +154,32 @@ def _linger(studio: Studio, seconds: float) -> None:
     if seconds <= 0:
         return
     say(f"the run is over: replay it on the page for {seconds:g} s more (Ctrl-C to stop)")
-    try:
-        end = time.monotonic() + seconds
-        while (left := end - time.monotonic()) > 0:
-            time.sleep(min(left, 0.2))
-    except (KeyboardInterrupt, Exception) as exc:  # Ctrl-C is how a studio is stopped
-        if not _stopped(exc):
-            raise
+    with _UntilSignal() as until:
+        until.studio = studio
+        until.sleep(seconds)
+    if until:
         say("stopped")
 
 
 # ---------------------------------------------------------------------------- view
 def view_web(args: argparse.Namespace) -> int:
-    """``view --web``: the model held at its starting pose, simulated live, until Ctrl-C."""
+    """``view --web``: the model held at its starting pose, simulated live, until a signal."""
     from ..model import load_model
     from ..sim.simulation import Pacer, Simulation
     from ..studio.live import StudioObserver
+    from ..studio.net import check_host
 
+    check_host(args.host)
     model = load_model(args.model, arm=getattr(args, "arm", None))
     sim = Simulation(model)
-    try:  # from the URL's announcement on, Ctrl-C is the way to stop: it ends with status 0
-        with _serving(_studio(sim.model, args)) as studio:
+    with _UntilSignal() as until:
+        studio = _studio(sim.model, args)
+        until.studio = studio
+        with _serving(studio):
             observer = StudioObserver(studio, Pacer(1.0))
-            while True:
-                sim.hold(1.0, observers=[observer], phase="hold")
-    except (KeyboardInterrupt, Exception) as exc:  # Ctrl-C is how a studio is stopped
-        if not _stopped(exc):
-            raise
-        say("stopped")
+            while not until:
+                sim.hold(0.2, observers=[observer], phase="hold")
+    say("stopped")
     return 0
 
 
@@ -191,32 +233,42 @@ def web_run(args: argparse.Namespace) -> Iterator[WebRun | None]:
 
 # ---------------------------------------------------------------------------- pose
 def pose_web(args: argparse.Namespace) -> int:
-    """``pose --web``: a slider per joint in the browser; each pose printed here."""
+    """``pose --web``: a slider per joint in the browser; each pose printed here (with a
+    warning line when the tip or a part of the arm is below the floor or in the table)."""
+    from ..studio.net import check_host
     from ..studio.pose import PoseStudio
-    from ..viewer.posefinder import format_python, format_toml
 
-    studio = PoseStudio(args.model, host=args.host, port=args.port)
-    try:  # from the URL's announcement on, Ctrl-C is the way to stop: it ends with status 0
+    check_host(args.host)
+    with _UntilSignal() as until:
+        studio = PoseStudio(args.model, host=args.host, port=args.port)
+        until.studio = studio.studio
         with studio:
-            announce(studio.url, "the pose finder")
+            announce(studio.url, "the pose finder", studio.studio)
             say(
                 "Move the joint sliders on the page (degrees; gripper 0-100). Each pose the "
                 "arm is left in is printed below; Ctrl-C to finish.",
                 flush=True,
             )
             for change in studio.poses():
-                say(
-                    f"\n# pose {change.number}\n"
-                    f"python: {format_python(change.pose)}\n"
-                    f"toml:   {format_toml(f'pose_{change.number}', change.pose)}"
-                    + (f"\ntip:    {change.tip.format()}" if change.tip is not None else ""),
-                    flush=True,
-                )
-    except (KeyboardInterrupt, Exception) as exc:  # Ctrl-C is how a studio is stopped
-        if not _stopped(exc):
-            raise
-        say("stopped")
+                say(format_pose(change), flush=True)
+    say("stopped")
     return 0
+
+
+def format_pose(change: Any, *, with_time: bool = False) -> str:
+    """A pose as the pose finders print it: a dict, a TOML line, the tip, the warnings."""
+    from ..viewer.posefinder import format_python, format_toml
+
+    when = f" (t = {change.time:.1f} s)" if with_time else ""
+    lines = [
+        f"\n# pose {change.number}{when}",
+        f"python: {format_python(change.pose)}",
+        f"toml:   {format_toml(f'pose_{change.number}', change.pose)}",
+    ]
+    if change.tip is not None:
+        lines.append(f"tip:    {change.tip.format()}")
+    lines += [f"warning: {w}" for w in getattr(change, "warnings", ())]
+    return "\n".join(lines)
 
 
 # ---------------------------------------------------------------------------- demo

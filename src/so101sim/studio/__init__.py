@@ -10,14 +10,21 @@ Works on a server with no display and no GPU (the browser draws); needs the ``we
     studio.finish()                         # the page's timeline replays the run
     studio.close()
 
-* :mod:`.server`: :class:`Studio` (the server, the page, the run's timeline);
+* :mod:`.server`: :class:`Studio` (the server, the page, the run's player);
+* :mod:`.timeline`: a run's frames, bounded in memory (``Frame``, ``Timeline``);
+* :mod:`.net`: the host and port checked, the addresses it listens on (warned beyond this
+  machine), the guard that refuses a websocket from another site;
+* :mod:`.look`: the model's floor, sky and lights, the camera on the arm, the docked panel;
+* :mod:`.ready`: the page's "the arm is drawn" signal (``#so101sim-ready``);
 * :mod:`.live`: :class:`StudioObserver` (a run, paced to the wall clock) and
   :class:`StudioViewer` (``launch_passive`` for a script);
-* :mod:`.pose`: :class:`PoseStudio` (one slider per joint, the tip, copy buttons).
+* :mod:`.pose`: :class:`PoseStudio` (one slider per joint, the tip, copy buttons, warnings
+  when the arm is in the floor or the table).
 
-May import: ``so101sim.viewer`` (the pose finder's watcher and scene),
+May import: ``so101sim.viewer`` (the pose finder's watcher, scene and warnings),
 ``so101sim.recording``, ``so101sim.motion``, ``so101sim.sim``, ``so101sim.kinematics``,
-``so101sim.model``, ``so101sim.units`` and the base modules.
+``so101sim.model``, ``so101sim.units`` and the base modules; viser and mjviser only when a
+studio starts.
 """
 
 from __future__ import annotations

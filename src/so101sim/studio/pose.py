@@ -4,9 +4,11 @@
 each between the joint's limits. Physics is off while posing: a slider sets the joint and the
 arm is drawn where the sliders say (forward kinematics only, nothing falls). The page shows
 the tip's position and pitch (:mod:`so101sim.kinematics`) and has "copy as Python dict" and
-"copy as TOML pose" buttons. :meth:`PoseStudio.poses` yields each pose the arm is left in
-(:class:`~so101sim.viewer.posefinder.PoseChange`, as the desktop pose finder does); the library
-prints nothing, the command prints them.
+"copy as TOML pose" buttons. A pose that puts the tip or a part of the arm below the floor or
+into the table is flagged on the page, in red above the sliders
+(:func:`~so101sim.viewer.clearance.pose_warnings`). :meth:`PoseStudio.poses` yields each pose
+the arm is left in (:class:`~so101sim.viewer.posefinder.PoseChange`, with its warnings, as the
+desktop pose finder does); the library prints nothing, the command prints them.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from ..errors import ModelError
 from ..kinematics import TipPose, for_model
 from ..model import arm_index, arm_units
 from ..units import GRIPPER, JOINT_NAMES, STARTING_POSE, Pose
+from ..viewer.clearance import pose_warnings
 from ..viewer.posefinder import PoseChange, PoseWatcher, format_python, format_toml, pose_scene
 from .server import DEFAULT_HOST, DEFAULT_PORT, Studio
 
@@ -63,6 +66,7 @@ class PoseStudio:
         self.digits = digits
         self._lock = threading.RLock()
         self.values = self.units.pose_to_array(start).astype(float)
+        self.warnings: tuple[str, ...] = ()  # where the pose puts the arm into the scene
         try:
             self._kin = for_model(self.model)
         except ModelError:
@@ -88,6 +92,7 @@ class PoseStudio:
         gui = self.studio.server.gui
         limits = self.units.limits_dict()
         self.sliders = {}
+        self.warning_text = gui.add_html("")
         with gui.add_folder("Joints (degrees; gripper 0-100)"):
             for i, name in enumerate(JOINT_NAMES):
                 lo, hi = limits[name]
@@ -121,6 +126,12 @@ class PoseStudio:
             self.studio.show(self.data, "posing", self.values, keep=False)
             pose = self.pose
             tip = self.tip()
+            self.warnings = pose_warnings(self.model, self.data)
+            self.warning_text.content = "".join(
+                f'<div class="so101sim-warning" style="color:#c62828;font-weight:600">'
+                f"⚠ {html.escape(w)}</div>"
+                for w in self.warnings
+            )
             self.tip_text.content = (
                 "**tip** " + tip.format().replace(", pitch", "  \n**pitch** ").replace("=", " = ")
                 if tip is not None
@@ -160,18 +171,20 @@ class PoseStudio:
         self, *, period: float = 1.0 / 15.0, watcher: PoseWatcher | None = None
     ) -> Iterator[PoseChange]:
         """Each pose the arm is left in (the first at once), until :meth:`close`; reads the
-        sliders ``1/period`` times a second (wall clock: nothing is simulated)."""
+        sliders ``1/period`` times a second (wall clock: nothing is simulated); ends too at
+        the studio's :meth:`~.server.Studio.interrupt`."""
         watcher = watcher if watcher is not None else PoseWatcher(self.units)
         t0 = time.monotonic()
-        while not self.studio.closed:
+        while not (self.studio.closed or self.studio.stopping):
             with self._lock:
                 q = self.units.to_radians(self.values)
+                warnings = self.warnings
             change = watcher.update(q, time.monotonic() - t0)
             if change is not None:
                 tip = (
                     self._kin.tip_array(np.array(list(change.pose.values()))) if self._kin else None
                 )
-                yield replace(change, tip=tip)
+                yield replace(change, tip=tip, warnings=warnings)
             self.studio._closed.wait(period)
 
     def close(self) -> None:

@@ -10,46 +10,49 @@ run's timeline (:class:`Timeline`, at most :data:`MAX_FRAMES` frames, thinned be
 replay and scrub the run. :meth:`Studio.close` stops the server and its threads.
 
 viser and mjviser are an optional extra: :func:`require_viser` raises :class:`StudioError`
-naming ``pip install "so101sim[web]"`` when they are missing.
-
-Long on purpose: one :class:`Studio` object, whose handlers share the server, the
-scene and the timeline; split, its halves would reach into each other's state.
+naming ``pip install "so101sim[web]"`` when they are missing. Where it listens and who may
+connect: :mod:`.net`; the timeline: :mod:`.timeline`; the page's floor, lights, camera and
+panel: :mod:`.look`.
 """
 
 from __future__ import annotations
 
 import contextlib
 import copy
-import errno
 import logging
-import socket
 import threading
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import mujoco
 import numpy as np
 
-from ..errors import SettingError, So101SimError
+from ..errors import SettingError
 from ..model import arm_index, arm_units
-from ..units import GRIPPER, JOINT_NAMES
 from ..validation import check_range
+from .look import dress
+from .net import (
+    DEFAULT_HOST,
+    DEFAULT_PORT,
+    OriginGuard,
+    StudioError,
+    check_host,
+    check_port,
+    ensure_free,
+    exposure_warning,
+    listen_addresses,
+    page_url,
+    port_in_use_message,
+    quiet_handshakes,
+    quiet_viser,
+)
+from .ready import ReadySignal
+from .timeline import FRAME_RATE, MAX_FRAMES, Frame, Timeline, angles_table
 
 log = logging.getLogger(__name__)
 
-DEFAULT_HOST = "127.0.0.1"
-DEFAULT_PORT = 8080
-MAX_FRAMES = 20_000
-"""Frames a timeline keeps at most; beyond, every other frame is dropped (the rate halves), so
-an hour-long run holds as much memory as a ten-minute one."""
-FRAME_RATE = 30.0  # frames per simulated second on the timeline (and live, at most)
 INSTALL_HINT = 'pip install "so101sim[web]"'
-
-
-class StudioError(So101SimError, RuntimeError):
-    """The studio cannot start: viser/mjviser missing, or the port is in use."""
 
 
 def require_viser() -> tuple[Any, Any]:
@@ -63,111 +66,6 @@ def require_viser() -> tuple[Any, Any]:
             f"expected them installed: {INSTALL_HINT}"
         ) from None
     return viser, ViserMujocoScene
-
-
-@contextlib.contextmanager
-def quiet_viser() -> Any:
-    """viser prints its address box and "Server stopped" with ``rich.print`` whatever its
-    ``verbose``; the library never prints: while starting and stopping, they go to the log."""
-    try:
-        import rich
-    except ImportError:  # viser without rich: nothing to quiet
-        yield
-        return
-    saved = rich.print
-    rich.print = lambda *a, **k: log.debug("viser: %s", " ".join(map(str, a)))
-    try:
-        yield
-    finally:
-        rich.print = saved
-
-
-def check_port(port: int) -> int:
-    """A TCP port number, 1 to 65535."""
-    return int(check_range(port, "port", low=1, high=65535, expected="a TCP port from 1 to 65535"))
-
-
-def port_in_use_message(host: str, port: int) -> str:
-    return (
-        f"port {port} on {host} is in use (another studio or server?); "
-        f"expected a free port: pass --port with another number"
-    )
-
-
-def ensure_free(host: str, port: int) -> None:
-    """Raise :class:`StudioError` if nothing can listen on ``host:port`` (viser itself would
-    quietly take the next port; a student must get the URL they asked for)."""
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    with socket.socket(family, socket.SOCK_STREAM) as s:
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            s.bind((host, port))
-        except OSError as exc:
-            if exc.errno == errno.EADDRINUSE:
-                raise StudioError(port_in_use_message(host, port)) from None
-            raise StudioError(
-                f"cannot listen on {host}:{port} ({exc.strerror}); expected an address of "
-                "this machine for --host (127.0.0.1, or 0.0.0.0 for every interface)"
-            ) from None
-
-
-@dataclass(frozen=True)
-class Frame:
-    """One state on the timeline: simulated time, phase, joint positions (qpos, mocap) and the
-    commanded and measured angles in the arm's units (JOINT_NAMES order; None: not known)."""
-
-    time: float
-    phase: str
-    qpos: np.ndarray
-    mocap_pos: np.ndarray
-    mocap_quat: np.ndarray
-    commanded: np.ndarray | None
-    measured: np.ndarray
-
-
-class Timeline:
-    """The frames of a run, at most ``capacity``: when full, every other frame is dropped and
-    the spacing doubles (bounded memory, however long the run)."""
-
-    def __init__(self, rate: float = FRAME_RATE, capacity: int = MAX_FRAMES) -> None:
-        self.period = self._period0 = 1.0 / rate
-        self.capacity = max(2, int(capacity))
-        self.frames: list[Frame] = []
-        self._next = -np.inf
-
-    def add(self, frame: Frame, force: bool = False) -> bool:
-        """Keep ``frame`` if a frame is due at its time (or ``force``); True if kept."""
-        if self.frames and frame.time < self.frames[-1].time:  # the clock went back: a reset
-            self.frames.clear()
-            self.period = self._period0
-        elif not force and frame.time < self._next:
-            return False
-        self.frames.append(frame)
-        self._next = frame.time + self.period - 1e-9
-        if len(self.frames) > self.capacity:
-            self.frames = self.frames[::2]
-            self.period *= 2
-        return True
-
-    @property
-    def duration(self) -> float:
-        return self.frames[-1].time - self.frames[0].time if self.frames else 0.0
-
-    def at(self, t: float) -> Frame:
-        """The last frame at or before simulated time ``t`` (the first one before it)."""
-        times = [f.time for f in self.frames]
-        i = int(np.searchsorted(times, t, side="right")) - 1
-        return self.frames[max(0, min(i, len(self.frames) - 1))]
-
-
-def _angles_table(frame: Frame) -> str:
-    """Markdown: one row per joint, commanded and measured (degrees; gripper 0-100)."""
-    rows = ["| joint | commanded | measured |", "|---|---:|---:|"]
-    for i, name in enumerate(JOINT_NAMES):
-        unit = "" if name == GRIPPER else "°"
-        cmd = "–" if frame.commanded is None else f"{frame.commanded[i]:.1f}{unit}"
-        rows.append(f"| {name} | {cmd} | {frame.measured[i]:.1f}{unit} |")
-    return "\n".join(rows)
 
 
 class Studio:
@@ -192,9 +90,11 @@ class Studio:
         controls: bool = True,
     ) -> None:
         viser, scene_class = require_viser()
-        port = check_port(port)
+        host, port = check_host(host), check_port(port)
         ensure_free(host, port)
         self.host, self.port, self.title = host, port, title
+        self.listening = tuple(listen_addresses(host, port))  # what the server binds
+        self.warning = exposure_warning(host, port, list(self.listening))
         self.model = model
         self.units = arm_units(model)
         self._index = arm_index(model)
@@ -205,17 +105,22 @@ class Studio:
         self._play_time = 0.0
         self._slider_set = float("nan")  # the timeline's value the player last set
         self._closed = threading.Event()
+        self.stopping = False  # set by interrupt(): a signal handler's way to stop a wait
         self._player: threading.Thread | None = None
         self._scratch = mujoco.MjData(model)
+        quiet_handshakes()
+        self.guard = OriginGuard(host)
         with quiet_viser():
             self.server = viser.ViserServer(host=host, port=port, label=title, verbose=False)
         try:
+            self.guard.install(self.server)
             if self.server.get_port() != port:  # taken between the check and the start
                 raise StudioError(port_in_use_message(host, port))
             # mjviser adjusts the model's visual settings: give it a copy
             self.scene = scene_class(self.server, copy.copy(model), num_envs=1)
             self.scene.camera_tracking_enabled = False
-            self._frame_camera()
+            dress(self.server, model)
+            self.ready = ReadySignal(self.server, model, self._closed)
             self._build_panel(controls)
         except BaseException:
             with quiet_viser():
@@ -226,27 +131,21 @@ class Studio:
     # ------------------------------------------------------------------ page
     @property
     def url(self) -> str:
-        host = "127.0.0.1" if self.host in ("", "0.0.0.0") else self.host
-        host = f"[{host}]" if ":" in host else host
-        return f"http://{host}:{self.port}"
+        return page_url(self.host, self.port)
 
-    def _repr_html_(self) -> str:  # Jupyter shows the studio as a link
-        return f'<a href="{self.url}" target="_blank">{self.title}: {self.url}</a>'
+    def _repr_html_(self) -> str:  # Jupyter shows the studio as a link (and its warning)
+        warning = f"<br><b>warning</b>: {self.warning}" if self.warning else ""
+        return f'<a href="{self.url}" target="_blank">{self.title}: {self.url}</a>{warning}'
 
     def __repr__(self) -> str:
         return f"Studio({self.url})"
 
-    def _frame_camera(self) -> None:
-        cam = self.server.initial_camera
-        cam.position = (0.42, 0.3, 0.3)
-        cam.look_at = (0.12, 0.0, 0.12)
-        cam.up = (0.0, 0.0, 1.0)
-
     def _build_panel(self, controls: bool) -> None:
         gui = self.server.gui
-        gui.configure_theme(control_width="large")
         self.status = gui.add_markdown("**t = 0.000 s**")
-        self.angles = gui.add_markdown("")
+        # the pose finder's sliders say the angles already: its table starts folded
+        with gui.add_folder("Angles (commanded, measured)", expand_by_default=controls):
+            self.angles = gui.add_markdown("")
         if not controls:
             self.play_button = self.pause_button = self.restart_button = None
             self.slider = None
@@ -310,12 +209,12 @@ class Studio:
         phase = f" · phase **{frame.phase}**" if frame.phase else ""
         state = "" if not self.finished else (" · playing" if self.playing else " · paused")
         self.status.content = f"**t = {frame.time:.3f} s**{phase}{state}"
-        self.angles.content = _angles_table(frame)
+        self.angles.content = angles_table(frame)
 
     def wait_while_paused(self) -> bool:
         """For a live run: block while the page's Pause is on; True if it paused at all."""
         paused = False
-        while not self.playing and not self._closed.is_set() and not self.finished:
+        while not (self.playing or self.stopping or self.finished or self._closed.is_set()):
             paused = True
             time.sleep(0.02)
         return paused
@@ -404,6 +303,11 @@ class Studio:
     def closed(self) -> bool:
         return self._closed.is_set()
 
+    def interrupt(self) -> None:
+        """Ask the waits of this studio (a paused run, the pose finder's poses) to end soon.
+        Safe in a signal handler: it sets a flag, takes no lock and raises nothing."""
+        self.stopping = True
+
     def close(self) -> None:
         """Stop the player and the server (waits for their threads)."""
         if self._closed.is_set():
@@ -427,3 +331,21 @@ def check_linger(seconds: float) -> float:
     if seconds is None or seconds < 0:
         raise SettingError(f"linger = {seconds!r}; expected seconds from 0 to 86400")
     return float(check_range(seconds, "linger", low=0.0, high=86400.0))
+
+
+__all__ = [
+    "DEFAULT_HOST",
+    "DEFAULT_PORT",
+    "FRAME_RATE",
+    "MAX_FRAMES",
+    "Frame",
+    "Studio",
+    "StudioError",
+    "Timeline",
+    "check_linger",
+    "check_port",
+    "ensure_free",
+    "port_in_use_message",
+    "quiet_viser",
+    "require_viser",
+]

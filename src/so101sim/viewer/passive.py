@@ -347,8 +347,9 @@ def view(m: mujoco.MjModel, d: mujoco.MjData) -> None:
         pass
     elif not has_display():
         raise ViewerError(
-            "no display to open the viewer on (DISPLAY is not set); on a server use "
-            "`xvfb-run so101sim view`, or record a video instead"
+            "no display to open the viewer on (DISPLAY is not set); run `so101sim view --web` "
+            "to see it in a web browser instead (no display needed), or on a server "
+            "`xvfb-run so101sim view`, or record a video"
         )
     import mujoco.viewer
 

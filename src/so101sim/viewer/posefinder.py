@@ -9,7 +9,9 @@ one cannot, which is why the pose finder does not use the passive viewer.
 :func:`find_poses` runs it: the window in the calling thread, and a thread that reads the
 arm's pose about 15 times a second; when it has moved by more than a small threshold since
 the last pose reported and then stays still for a few reads, :class:`PoseWatcher` reports it
-(``on_pose``), and the command prints it ready to paste as a Python dict and as a TOML pose.
+(``on_pose``), and the command prints it ready to paste as a Python dict and as a TOML pose,
+with a warning line when the tip or a part of the arm is below the floor or in the table
+(:mod:`.clearance`; contacts keep most of the arm out, not the tip).
 
 For a viewer of your own (a passive viewer you pause yourself, a test's fake),
 :func:`open_pose_viewer` and :func:`watch_poses` do the same as a generator. The library never
@@ -38,6 +40,7 @@ from ..model.load import arm_index, arm_units, load_model
 from ..sim.simulation import Pacer, measured_radians
 from ..sim.stepping import advance_unobserved
 from ..units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose
+from .clearance import pose_warnings
 
 
 @dataclass(frozen=True)
@@ -48,6 +51,7 @@ class PoseChange:
     time: float  # simulated time of the read, s
     pose: dict[str, float]  # arm units, rounded to ``digits``
     tip: TipPose | None = None  # where the gripper's tip is (metres, base frame)
+    warnings: tuple[str, ...] = ()  # the tip or a part below the floor or in the table
 
 
 class PoseWatcher:
@@ -116,7 +120,8 @@ def pose_scene(
 
 NO_DISPLAY_MESSAGE = (
     "the pose finder shows a window to pose the arm in, and there is no display here "
-    "(DISPLAY is not set): run it on a desktop, or on one reached remotely (ssh -X, VNC)"
+    "(DISPLAY is not set): run `so101sim pose --web` to pose it in a web browser instead, or "
+    "run it on a desktop, or on one reached remotely (ssh -X, VNC)"
 )
 
 
@@ -153,6 +158,7 @@ def find_poses(
     watcher = watcher if watcher is not None else PoseWatcher(arm_units(m))
     stop = threading.Event()
     failed: list[BaseException] = []
+    scratch = mujoco.MjData(m)  # the reported pose is judged here, not on the viewer's data
 
     def watch() -> None:
         while not stop.is_set():
@@ -160,7 +166,7 @@ def find_poses(
             change = watcher.update(q, float(d.time))
             if change is not None:
                 try:
-                    on_pose(replace(change, tip=_tip(m, change.pose)))
+                    on_pose(_judged(m, scratch, change))
                 except BaseException as exc:  # handed to the caller after the window closes
                     failed.append(exc)
                     return
@@ -204,6 +210,7 @@ def watch_poses(
     watcher = watcher if watcher is not None else PoseWatcher(arm_units(m))
     pacer = pacer if pacer is not None else Pacer()
     n = max(1, round(period / m.opt.timestep))
+    scratch = mujoco.MjData(m)
     while viewer.is_running():
         viewer.sync()  # picks up slider moves and drags
         with viewer.lock():
@@ -211,7 +218,7 @@ def watch_poses(
             t = float(d.time)
         change = watcher.update(q, t)
         if change is not None:
-            yield replace(change, tip=_tip(m, change.pose))
+            yield _judged(m, scratch, change)
         with viewer.lock():
             advance_unobserved(
                 m, d, None, n
@@ -225,6 +232,14 @@ def _tip(m: mujoco.MjModel, pose: dict[str, float]) -> TipPose | None:
         return for_model(m).tip_array(np.array([pose[n] for n in JOINT_NAMES]))
     except ModelError:
         return None
+
+
+def _judged(m: mujoco.MjModel, scratch: mujoco.MjData, change: PoseChange) -> PoseChange:
+    """``change`` with its tip and its warnings (the pose set on ``scratch``)."""
+    units = arm_units(m)
+    scratch.qpos[arm_index(m).qpos] = units.to_radians(units.pose_to_array(change.pose))
+    mujoco.mj_kinematics(m, scratch)
+    return replace(change, tip=_tip(m, change.pose), warnings=pose_warnings(m, scratch))
 
 
 def format_python(pose: Pose) -> str:
