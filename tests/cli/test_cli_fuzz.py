@@ -65,6 +65,8 @@ PATH_OPTIONS = {  # option -> the suffix of the file it names
     "handin": ".csv",
     "--video": ".mp4",
     "--summary": ".csv",
+    "policy": "",
+    "--robot-config": ".json",
 }
 TEXT_OPTIONS = {"--camera", "--title", "--id", "--port", "--ray", "--lookat", "task", "action"}
 
@@ -92,10 +94,19 @@ def _bases(tmp: Path) -> dict[str, list[str]]:
     ]
     rows += [f"{k / 30:.4f},hold,{rest},{rest}" for k in range(10)]
     log.write_text("\n".join(rows) + "\n")
+    policy = tmp / "pretrained_model"  # a policy's inputs, as lerobot-train saves them
+    policy.mkdir(exist_ok=True)
+    (policy / "config.json").write_text(
+        '{"type": "act", "input_features": {"observation.state": {"type": "STATE", '
+        '"shape": [6]}}, "output_features": {"action": {"type": "ACTION", "shape": [6]}}}'
+    )
+    robot = tmp / "robot.json"
+    robot.write_text('{"robot": {"type": "so101_follower", "port": "/dev/null", "id": "arm"}}')
     return {
         "run": ["run", "--headless", str(motion)],
         "compare": ["compare", str(log)],
         "grade": ["grade", str(log)],
+        "policy-check": ["policy-check", str(policy), "--robot-config", str(robot)],
         # without the LeRobot plugins (the core's venv) these two say what to install, exit 2
         "dataset": ["dataset", "pick_cube", "--episodes", "1", "-o", str(tmp / "out" / "ds")],
         "eval": ["eval", str(tmp / "policy"), "--episodes", "1"],

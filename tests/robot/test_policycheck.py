@@ -138,6 +138,6 @@ def test_unreadable_files_exit_2(tmp_path, capsys):
     no_type.write_text(json.dumps({"robot": {"port": "x"}}))
     with pytest.raises(SettingError, match="no robot type"):
         check_policy(policy, no_type)
-    with pytest.raises(SettingError, match=r"no config\.json|not a file"):
+    with pytest.raises(SettingError, match=r"no config\.json|not a file|does not exist"):
         check_policy(tmp_path / "nowhere", no_type)
     assert main(["policy-check", str(tmp_path), "--robot-config", str(no_type)]) == 2

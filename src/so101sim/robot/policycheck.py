@@ -27,6 +27,7 @@ from typing import Any
 
 from ..errors import MissingDependencyError, SettingError
 from ..units import JOINT_NAMES
+from ..validation import check_input_file
 
 FOLLOWER_STATE_NAMES = tuple(f"{j}.pos" for j in JOINT_NAMES)
 """What the SO-100/SO-101 follower (real and simulated) calls its state's six numbers."""
@@ -62,8 +63,8 @@ class PolicyCheck:
 
 def _read_mapping(path: Path, what: str) -> dict[str, Any]:
     """A JSON or YAML file holding a mapping."""
-    if not path.is_file():
-        raise SettingError(f"{what} {str(path)!r} is not a file; expected {what} as a file path")
+    name = what.removeprefix("the ")  # check_input_file says "the {name}"
+    path = check_input_file(path, name, expected=f"{what} as a JSON or YAML file")
     if path.stat().st_size > MAX_CONFIG_BYTES:
         raise SettingError(
             f"{what} {str(path)!r} is over {MAX_CONFIG_BYTES} bytes; expected a config"
