@@ -126,10 +126,17 @@ def page_ready(browser, timeout: float = BROWSER_WAIT) -> None:
 def screenshot(browser, timeout: float = BROWSER_WAIT) -> bytes:
     """A PNG of the page; chromium's renderer answers a screenshot within a fixed 10 s or
     fails ("Timed out receiving message from renderer"): on a busy machine, ask again."""
+    import base64
+
     end = time.monotonic() + timeout
     while True:
         try:
             return browser.get_screenshot_as_png()
+        except _slow_browser():
+            pass
+        try:  # DevTools' own capture: chromedriver does not cut it at the renderer's 10 s
+            shot = browser.execute_cdp_cmd("Page.captureScreenshot", {"format": "png"})
+            return base64.b64decode(shot["data"])
         except _slow_browser():
             if time.monotonic() > end:
                 raise
