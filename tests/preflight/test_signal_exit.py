@@ -57,10 +57,23 @@ def test_a_signal_ends_a_threaded_robust_check_cleanly_every_time() -> None:
     assert codes == expected, f"exit codes {codes} (negative: killed by a signal)"
 
 
+def _to_the_process() -> None:
+    os.kill(os.getpid(), signal.SIGUSR1)  # the kernel picks a thread that does not block it
+
+
+def _to_this_worker() -> None:
+    # what CI saw: the signal landed on a worker while the caller waited without a timeout,
+    # so Python never ran the handler and the wait (and the suite) lasted until CI's limit
+    signal.pthread_kill(threading.get_ident(), signal.SIGUSR1)
+
+
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
-def test_an_interrupt_while_waiting_stops_the_workers_and_waits_for_them() -> None:
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("send", [_to_the_process, _to_this_worker], ids=["process", "worker"])
+def test_an_interrupt_while_waiting_stops_the_workers_and_waits_for_them(send) -> None:
     """A signal handler raising in the caller (as the CLI's does): the workers stop at their
-    next block, and every one has finished before the interrupt goes on up."""
+    next block, and every one has finished before the interrupt goes on up, whichever thread
+    the kernel handed the signal to."""
     started, finished = threading.Barrier(2), []
     errors: list[BaseException] = []
 
@@ -69,7 +82,7 @@ def test_an_interrupt_while_waiting_stops_the_workers_and_waits_for_them() -> No
 
     def work() -> None:
         if started.wait(30) == 0:  # both workers run: interrupt the caller
-            os.kill(os.getpid(), signal.SIGUSR1)
+            send()
         while not errors:  # a worker looks at errors between blocks
             np.linalg.eigvals(np.eye(20))
         finished.append(threading.current_thread().name)

@@ -34,6 +34,19 @@ class Stopped(Exception):
     """A worker told to stop (another failed, or the caller was interrupted)."""
 
 
+POLL_S = 0.05  # how often the waiting thread wakes up to run Python's signal handlers
+
+
+def _wait_all(events: list[threading.Event]) -> None:
+    """Wait until every event is set, waking every ``POLL_S``: Python runs a signal's handler
+    only when the main thread runs bytecode, and a wait without a timeout is not woken by a
+    signal the kernel delivered to another thread (a process-wide ``kill`` may go to any
+    thread that does not block it), so such a wait could last for ever (a CI hang)."""
+    for event in events:
+        while not event.wait(POLL_S):
+            pass
+
+
 def run_threads(work: Callable[[], None], count: int, errors: list[BaseException]) -> None:
     """Run ``work`` on ``count`` threads and wait until each has finished with MuJoCo,
     whatever happens meanwhile.
@@ -61,15 +74,13 @@ def run_threads(work: Callable[[], None], count: int, errors: list[BaseException
             for k, th in enumerate(pool):
                 th.start()
                 started.append(done[k])
-        for event in done:
-            event.wait()
+        _wait_all(done)
     except BaseException as exc:
         pending = exc
         errors.append(exc)  # the workers stop at their next block
     while not all(event.is_set() for event in started):
         try:
-            for event in started:
-                event.wait()
+            _wait_all(started)
         except BaseException as exc:  # another signal: still wait for them (one block each)
             pending = pending or exc
     if pending is not None:
