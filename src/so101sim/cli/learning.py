@@ -131,7 +131,15 @@ def add_learning_commands(sub: SubParsers) -> None:
         "--after-success", type=float, default=1.0, help="seconds kept after success (1)"
     )
     p.add_argument("--workers", type=int, help="worker processes (default: every core)")
-    p.add_argument("--ray", action="store_true", help="run the episodes as Ray tasks")
+    p.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        default=None,
+        metavar="ADDRESS",
+        help="run the episodes as Ray tasks: --ray (a Ray started here with --workers CPUs), "
+        "--ray auto (a cluster started with `ray start --head`) or --ray host:port",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_dataset)
 
@@ -213,7 +221,8 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         randomize=args.randomize,
         after_success_s=args.after_success,
         workers=_workers(args.workers),
-        use_ray=args.ray,
+        use_ray=args.ray is not None,
+        ray_address=args.ray or "local",
         video=not args.no_video,
     )
     bar = tqdm(total=args.episodes, unit="episode", disable=args.no_progress, file=sys.stderr)

@@ -19,7 +19,8 @@ Actions are joint targets in the arm's units (absolute, or deltas), or end-effec
 success and rewards in :mod:`.tasks`; the experts in :mod:`.expert`, run by
 :func:`run_expert` and :func:`evaluate_expert`. See docs/tasks.md.
 
-May import: ``so101sim.robot`` (the gripper's torque), ``so101sim.recording``,
+May import: ``so101sim.robot`` (the gripper's torque), ``so101sim.preflight`` (joining a Ray
+cluster: :mod:`.distributed`), ``so101sim.recording``,
 ``so101sim.viewer``, ``so101sim.scenes``, ``so101sim.motion``, ``so101sim.sim``,
 ``so101sim.kinematics``, ``so101sim.model``, ``so101sim.units`` and the base modules.
 """
@@ -28,6 +29,7 @@ import gymnasium as gym
 
 from .actions import CONTROL_MODES, ActionMap, ControlSettings
 from .base import REWARD_MODES, Evaluation, So101TaskEnv
+from .distributed import expert_frames_on_ray
 from .expert import CubeToBowlExpert, PickCubeExpert, ScriptedExpert, expert_for
 from .reach import REACH_SUCCESS_M, ReachEnv, ReachExpert, ReachTask
 from .run import (
@@ -109,6 +111,7 @@ __all__ = [
     "evaluate_expert",
     "expert_for",
     "expert_frames",
+    "expert_frames_on_ray",
     "make",
     "make_vec",
     "register_envs",
