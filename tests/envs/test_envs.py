@@ -27,7 +27,14 @@ from so101sim.errors import CameraError, SettingError
 from so101sim.recording import VideoSettings
 from so101sim.units import STARTING_POSE
 
-IDS = ["so101sim/PickCube-v0", "so101sim/CubeToBowl-v0"]
+IDS = [
+    "so101sim/PickCube-v0",
+    "so101sim/CubeToBowl-v0",
+    "so101sim/Push-v0",
+    "so101sim/Stack-v0",
+    "so101sim/LookAt-v0",
+    "so101sim/LiftMesh-v0",
+]
 # Absolute joint targets in degrees are the arm's own action space (what LeRobot sends), not
 # the [-1, 1] box the checker recommends for RL.
 pytestmark = pytest.mark.filterwarnings("ignore:.*symmetric and normalized space")

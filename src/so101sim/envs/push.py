@@ -40,6 +40,9 @@ PUSH_SCALE = 5.0
 PUSH_GRIPPER = 70.0
 """The gripper's opening while pushing: the moving jaw then stands 49 mm from the fixed one,
 beyond a 2.5 cm cube's far corner whatever its turn."""
+CORNER_CLEARANCE_M = 0.005
+"""How far outside the cube's corners (whatever its turn) the fixed jaw comes down: with the
+gripper at :data:`PUSH_GRIPPER` the moving jaw then clears the far corners by 7 mm."""
 PUSH_Z_M = 0.009
 """The tip's height while pushing (as for a grasp: the jaws' ends clear the table)."""
 PUSH_SPEED_M_S = 0.08
@@ -106,7 +109,7 @@ class PushExpert(ScriptedExpert):
         env = self.env
         cube = env.object_pose("cube")
         start = self._start()
-        width = env.scene.object("cube").radius * 2 + 0.002  # clear of its corners
+        width = env.scene.object("cube").radius * 2 + 2 * CORNER_CLEARANCE_M
         self._grasp = top_grasp(
             env.model, cube[:2], self._heading(), width, PUSH_Z_M, start, symmetry=360.0
         )
