@@ -197,3 +197,15 @@ def test_wilson_interval_and_the_randomize_option():
     assert "randomize" not in parse_env("type=so101sim_pick_cube").gym_kwargs
     with pytest.raises(draccus.utils.ParsingError):
         parse_env("type=so101sim_pick_cube", "randomize=heavy")
+
+
+@pytest.mark.parametrize("task", ["push", "stack", "look_at", "lift_mesh", "reach"])
+def test_every_task_has_an_env_type_with_its_state_size(task):
+    from lerobot_env_so101sim.configs import state_size
+
+    cfg = parse_env(f"type=so101sim_{task}", "object_state=true", "cameras=[]")
+    assert cfg.gym_id in gym.registry
+    env = gym.make(cfg.gym_id, **cfg.gym_kwargs)
+    obs, _ = env.reset(seed=0)
+    assert obs["environment_state"].shape == (state_size(cfg.task),)
+    env.close()
