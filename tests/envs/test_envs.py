@@ -205,8 +205,8 @@ def test_bad_settings_and_actions_are_refused_with_what_to_use():
         PickCubeEnv(render_camera="top")
     with pytest.raises(SettingError, match="unknown quality preset 'best'"):
         PickCubeEnv(quality="best")
-    with pytest.raises(SettingError, match="unknown task 'stack'"):
-        run_expert("stack")
+    with pytest.raises(SettingError, match="unknown task 'juggle'"):
+        run_expert("juggle")
     env = CubeToBowlEnv()
     env.reset(seed=0)
     with pytest.raises(SettingError, match="expected 6 finite numbers"):
