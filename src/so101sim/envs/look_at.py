@@ -74,7 +74,8 @@ class LookAtTask:
         uv = self.seen_at()
         r = math.inf if uv is None else float(np.hypot(*uv))
         success = r <= LOOK_SUCCESS
-        dense = 1.0 if success else 1.0 - math.tanh(LOOK_SCALE * r) if uv is not None else 0.0
+        shaped = 1.0 - math.tanh(LOOK_SCALE * r)  # 0 behind the lens (r infinite)
+        dense = 1.0 if success else shaped
         return Evaluation(success, dense, {"image_offset": min(r, 1e3)})
 
 
@@ -153,7 +154,7 @@ class LookAtExpert:
         centre: damped least squares over pan, shoulder lift, elbow and wrist flex."""
         pose = np.asarray(pose, dtype=float).copy()
         lower, upper = self._units.limits
-        joints = [j for j in range(4)]
+        joints = list(range(4))  # pan, shoulder lift, elbow, wrist flex
         for _ in range(self.ITERATIONS):
             uv = self._seen(pose, point)
             if uv is None:

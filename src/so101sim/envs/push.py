@@ -100,6 +100,11 @@ class PushExpert(ScriptedExpert):
     def _steps(self, phase: str) -> int:
         return 0 if phase == "check" else max(1, round(PUSH_PHASES[phase] * self.env.control_hz))
 
+    def reset(self) -> None:
+        super().reset()
+        self._end = np.zeros(3)
+        self._end_roll = 0.0
+
     def _heading(self) -> float:
         env = self.env
         d = env.object_pose("mark")[:2] - env.object_pose("cube")[:2]
