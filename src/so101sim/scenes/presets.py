@@ -1,6 +1,7 @@
-"""Named table-top scenes (:data:`SCENE_PRESETS`: ``pick_cube``, ``cube_to_bowl``), scenes
-read from a motion file's ``[scene]`` table (:func:`scene_from_dict`), and the colour, light
-and camera jitter drawn from a seed for images (:class:`VisualJitter`).
+"""Named table-top scenes (:data:`SCENE_PRESETS`: ``pick_cube``, ``cube_to_bowl``, the lifts,
+``push``, ``stack``), scenes read from a motion file's ``[scene]`` table
+(:func:`scene_from_dict`), and the colour, light and camera jitter drawn from a seed for
+images (:class:`VisualJitter`).
 
 The presets' objects stand where a top-down grasp reaches them: the tool pointing straight
 down reaches from about 9.5 to 22 cm from the shoulder's pan axis (3.9 cm in front of the base)
@@ -174,7 +175,7 @@ def scene_from_dict(d: Mapping[str, object]) -> TableScene:
         cameras = ["front"]           # preset camera names
         [[scene.objects]]             # replaces the preset's objects when given
         name = "cube"
-        shape = "box"                 # box, cylinder, sphere, bowl, open_box
+        shape = "box"                 # box, cylinder, sphere, bowl, open_box, mesh, mark
         size = 0.025                  # metres (see SceneObject)
         mass = 0.03                   # kg
         color = [0.9, 0.1, 0.1]
