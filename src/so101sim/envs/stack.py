@@ -12,7 +12,8 @@ from the cube to the block while the cube is held up or on the block); 1 on succ
 observation's ``environment_state`` holds the cube's and the block's poses (14 numbers).
 
 The scripted expert (:class:`StackExpert`) picks the cube as the pick expert does, carries it
-over the block at the lift height, lowers it until it is 4 mm above the block's top, opens
+over the block at the lift height, lowers it until it is 4 mm above the block's top (the
+tip placed so that the cube, where it sits in the jaws, is over the block's centre), opens
 and lifts away (the bowl expert's script with the block as the target).
 """
 
@@ -103,10 +104,15 @@ class StackExpert(CubeToBowlExpert):
         return g.position
 
     def _plan_lower(self, n: int) -> None:
+        """Down onto the block, the cube's centre (as it sits in the hand now, measured) over
+        the block's: the carry aims the tip, and the cube is rarely exactly where the grasp
+        was planned in the jaws."""
         env = self.env
         # the tip holds the cube as it held it on the table (GRASP_Z_M up from its bottom)
         tip_z = 2 * env.half_height("block") + DROP_GAP_M + GRASP_Z_M
         target = self._drop_point(tip_z)
+        in_hand = env.object_pose("cube")[:2] - env.sim.data.site_xpos[env._tip_site][:2]
+        target[:2] = env.object_pose("block")[:2] - in_hand
         self._push(line_path(env.model, self._start(), target, n, self._grasp.roll))
 
 
