@@ -62,6 +62,9 @@ TASK_TEXT = {
     "cube_to_bowl": "Put the red cube in the bowl.",
     "lift_cylinder": "Pick up the orange cylinder.",
     "lift_sphere": "Pick up the green ball.",
+    "lift_mesh": "Pick up the purple nut.",
+    "push": "Push the red cube onto the green mark.",
+    "stack": "Stack the red cube on the blue block.",
 }
 """The dataset's task text per task (the environments' ``task_description``)."""
 MAX_EPISODES = 100_000

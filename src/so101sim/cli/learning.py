@@ -87,14 +87,17 @@ def add_learning_commands(sub: SubParsers) -> None:
         help="write a LeRobotDataset of a task's scripted expert (needs the LeRobot plugin)",
         description=(
             "Simulates N episodes of TASK's scripted expert (pick_cube, cube_to_bowl, "
-            "lift_cylinder, lift_sphere), each from "
+            "lift_cylinder, lift_sphere, lift_mesh, push, stack), each from "
             "its own seed, faster than real time on worker processes, and writes them with "
             "LeRobot's dataset writer: the features lerobot-record writes on "
             "--robot.type=so101_sim. Failed takes are left out and counted (replaced by the "
             "next seeds). Needs lerobot_robot_so101sim installed."
         ),
     )
-    p.add_argument("task", help="pick_cube, cube_to_bowl, lift_cylinder or lift_sphere")
+    p.add_argument(
+        "task",
+        help="pick_cube, cube_to_bowl, lift_cylinder, lift_sphere, lift_mesh, push or stack",
+    )
     p.add_argument("--episodes", type=int, required=True, help="episodes to write")
     p.add_argument("-o", "--output", required=True, help="the dataset's folder (must not exist)")
     p.add_argument("--repo-id", default="local/so101sim", help="the dataset's repo_id")
