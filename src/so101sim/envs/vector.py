@@ -31,7 +31,7 @@ from ..validation import check_choice, check_count
 from .base import So101TaskEnv
 from .run import make
 
-BACKENDS = ("cpu", "warp")
+BACKENDS = ("cpu", "warp", "ray")
 MAX_WORLDS = 65_536
 
 
@@ -204,14 +204,20 @@ def make_vec(
     ``gym.make``).
 
     ``backend``: ``"cpu"`` (MuJoCo on every core: ``nthread`` threads, default the cores this
-    process may use) or ``"warp"`` (MuJoCo Warp on a CUDA GPU: the optional ``warp`` extra;
-    see :mod:`so101sim.envs.warp`).
+    process may use), ``"warp"`` (MuJoCo Warp on a CUDA GPU: the optional ``warp`` extra;
+    see :mod:`so101sim.envs.warp`) or ``"ray"`` (the worlds split over Ray actors:
+    ``address="local"`` starts a Ray here, ``"auto"`` or ``"host:port"`` joins a cluster;
+    ``workers`` actors; see :mod:`so101sim.envs.rayvec`).
 
     Raises:
         SettingError: an unknown task or backend, a bad count or option.
         So101SimError: ``backend="warp"`` where MuJoCo Warp or a CUDA device is missing.
     """
     check_choice(backend, "backend", BACKENDS)
+    if backend == "ray":
+        from .rayvec import RayVectorEnv  # imported here only: it needs the optional Ray
+
+        return RayVectorEnv(task, num_envs, **env_kwargs)
     if backend == "warp":
         from .warp import WarpVectorEnv  # imported here only: it needs the optional extra
 
