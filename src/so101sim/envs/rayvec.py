@@ -1,6 +1,6 @@
 """Many worlds past one machine: ``make_vec(task, N, backend="ray")`` splits the N worlds over
 Ray actors (one CPU each, on the cluster at ``address``), each holding a
-:class:`~so101sim.envs.vector.So101VectorEnv` of its share; a step sends each actor its rows of
+:class:`~so101sim.envs.worlds.So101VectorEnv` of its share; a step sends each actor its rows of
 the actions and joins the answers in world order.
 
 World i is the same world as in ``make_vec(task, N)`` (its own seed ``seed + i``, its own
@@ -23,7 +23,7 @@ from gymnasium.vector.utils import batch_space
 from ..errors import ClosedError, SettingError
 from ..preflight.distributed import connect_ray, import_ray
 from ..validation import check_count
-from .vector import MAX_WORLDS, So101VectorEnv
+from .worlds import MAX_WORLDS, So101VectorEnv
 
 MAX_RAY_ACTORS = 1024
 
