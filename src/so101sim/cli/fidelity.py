@@ -30,7 +30,12 @@ def add_parsers(sub: SubParsers) -> None:
     )
     p.add_argument("log", help="a LeRobot dataset folder or a so101sim CSV log")
     _common(p)
-    p.add_argument("--plot", metavar="PNG", help="real, sim and command per joint (1st episode)")
+    p.add_argument(
+        "--plot",
+        metavar="PNG",
+        help="real, sim and command per joint, the compared episodes one after another (at "
+        "most 10), the worst windows shaded",
+    )
     p.add_argument("--force", action="store_true", help="overwrite an existing --plot file")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=cmd_compare)
@@ -102,8 +107,9 @@ def _warn(text: str) -> None:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from ..fidelity.compare import compare, plot_overlay
+    from ..fidelity.compare import compare
     from ..fidelity.logs import parse_episodes
+    from ..fidelity.plot import plot_overlay
     from ..recording.paths import check_output_path
 
     episodes = parse_episodes(args.episodes) if args.episodes is not None else None
