@@ -52,7 +52,7 @@ def result(episodes):
 
 @pytest.fixture(scope="module")
 def studio(result):
-    windows = [Window(w.episode, w.t0, w.t1, f"episode {w.episode}") for w in result.worst]
+    windows = [Window(w.episode, w.t0, w.t1, f"ep {w.episode}", w.joint) for w in result.worst]
     with CompareStudio(load_model(), result.traces, windows=windows, port=free_port()) as st:
         yield st
 
@@ -104,9 +104,21 @@ def test_the_timeline_holds_both_episodes_one_after_the_other(studio, episodes):
     assert [f.episode for f in frames] == [0] * len(episodes[0].times) + [1] * len(
         episodes[1].times
     )
-    # a chart per joint (real, sim, command) and a button per worst window
-    assert len(studio.charts) == 6
+    # a button per worst window; the chart: command, real and sim of the worst window's
+    # joint over the timeline (a break between the episodes), another joint when picked
     assert 1 <= len(studio.window_buttons) <= 3
+    assert studio.chart_joint.value == "elbow_flex"
+    x, command, real, sim = studio.chart.data
+    gap = np.isnan(real)
+    assert gap.sum() == 1 and start1 - GAP_S < x[gap][0] < start1
+    ok = ~gap
+    np.testing.assert_allclose(sim[ok], [f.measured[2] for f in frames])
+    np.testing.assert_allclose(real[ok], [f.real[2] for f in frames])
+    np.testing.assert_allclose(command[ok], [f.commanded[2] for f in frames])
+    studio.chart_joint.value = "wrist_flex"
+    studio._show_joint(None)
+    assert studio.chart.title.startswith("wrist_flex (deg)")
+    np.testing.assert_allclose(studio.chart.data[3][ok], [f.measured[3] for f in frames])
     # the player plays on from where it was put, the ghost with it, and stops at the end
     studio.jump(start1)
     studio.speed = 4.0

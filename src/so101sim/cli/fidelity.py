@@ -195,7 +195,7 @@ def _serve_compare(result, args: argparse.Namespace) -> int:
     model = load_model(args.model, arm=args.arm)
     windows = [
         Window(w.episode, w.t0, w.t1, f"episode {w.episode}, {w.t0:.1f}-{w.t1:.1f} s: "
-               f"{w.joint} ({w.mae:.1f} deg body mae)")
+               f"{w.joint} ({w.mae:.1f} deg body mae)", w.joint)
         for w in result.worst
     ]  # fmt: skip
     with _UntilSignal() as until:

@@ -5,8 +5,9 @@ Restart and the timeline slider) whose timeline holds the compared episodes one 
 (each from its first frame, :data:`GAP_S` apart): the arm drawn as usual is the sim's replay,
 and a translucent ghost (:class:`~.ghost.Ghost`) is the real arm, posed from the recording.
 The panel shows, at the player's time, each joint's command, real and sim values and the
-sim's error; an episode picker and one button per worst window jump the player there; and one
-chart per joint draws real, sim and command over the whole timeline.
+sim's error; an episode picker and one button per worst window jump the player there; and a
+chart draws a joint's real, sim and command over the whole timeline (a picker chooses the
+joint; the worst window's joint first).
 
 It takes plain arrays, not a comparison: ``traces`` are mappings with the keys of
 :attr:`so101sim.fidelity.compare.CompareResult.traces` (``episode``, ``t``, ``real``, ``sim``,
@@ -28,7 +29,7 @@ from .ghost import Ghost
 from .server import Frame, Studio
 
 GAP_S = 0.5  # seconds of timeline between two episodes
-CHART_POINTS = 2000  # points per series at most in a joint's chart (thinned beyond)
+CHART_POINTS = 3000  # points per series at most in the chart (thinned beyond)
 MAX_WINDOW_BUTTONS = 10
 
 
@@ -52,6 +53,7 @@ class Window:
     t0: float
     t1: float
     label: str
+    joint: str = ""  # its worst joint (the chart shows the first window's first)
 
 
 class CompareStudio(Studio):
@@ -155,30 +157,47 @@ class CompareStudio(Studio):
         picker = gui.add_dropdown("Episode", options=episodes, initial_value=episodes[0])
         picker.on_update(lambda _: self.jump(self.starts[int(picker.value)]))
         self.picker = picker
-        self.window_buttons = []
+        self.window_buttons: list[Any] = []
         shown = [w for w in windows if w.episode in self.starts][:MAX_WINDOW_BUTTONS]
+        x, series = _chart_data(self.timeline.frames)
+        first = next((w.joint for w in shown if w.joint in JOINT_NAMES), JOINT_NAMES[2])
+        with gui.add_folder("Real, sim, command over the timeline"):
+            pick = gui.add_dropdown("Joint", options=list(JOINT_NAMES), initial_value=first)
+            self.chart = gui.add_uplot(
+                _joint_chart(x, series, first),
+                (
+                    {"label": "t (s)"},
+                    {"label": "command", "stroke": "gray", "dash": [4, 4], "width": 1},
+                    {"label": "real", "stroke": "#4a9ee8", "width": 1.5},
+                    {"label": "sim", "stroke": "darkorange", "width": 1.5},
+                ),
+                title=_chart_title(first),
+                scales={"x": {"time": False}},  # seconds of the timeline, not a date
+                aspect=1.6,
+            )
+        self.chart_joint = pick
+
+        def show_joint(_: Any) -> None:
+            self.chart.data = _joint_chart(x, series, pick.value)
+            self.chart.title = _chart_title(pick.value)
+
+        pick.on_update(show_joint)
+        self._show_joint = show_joint  # for a test: what the dropdown does
         if shown:
             with gui.add_folder("Worst windows (jump there)"):
                 for w in shown:
                     button = gui.add_button(w.label)
                     button.on_click(lambda _, w=w: self.jump(self.time_of(w.episode, w.t0)))
                     self.window_buttons.append(button)
-        with gui.add_folder("Real, sim, command", expand_by_default=False):
-            x, series = _chart_data(self.timeline.frames)
-            self.charts = [
-                gui.add_uplot(
-                    (x, *(s[:, j] for s in series)),
-                    (
-                        {"label": "t (s)"},
-                        {"label": "command", "stroke": "gray", "dash": [4, 4], "width": 1},
-                        {"label": "real", "stroke": "#4a9ee8", "width": 1.5},
-                        {"label": "sim", "stroke": "darkorange", "width": 1.5},
-                    ),
-                    title=f"{name} ({'0-100' if name == GRIPPER else 'deg'})",
-                    aspect=2.0,
-                )
-                for j, name in enumerate(JOINT_NAMES)
-            ]
+
+
+def _chart_title(joint: str) -> str:
+    return f"{joint} ({'0-100' if joint == GRIPPER else 'deg'}); a break: the next episode"
+
+
+def _joint_chart(x: np.ndarray, series: list[np.ndarray], joint: str) -> tuple[np.ndarray, ...]:
+    j = JOINT_NAMES.index(joint)
+    return (x, *(np.ascontiguousarray(s[:, j]) for s in series))
 
 
 def _chart_data(frames: Sequence[Frame]) -> tuple[np.ndarray, list[np.ndarray]]:
