@@ -21,14 +21,24 @@ pytest.importorskip("mjviser", reason="the web extra is not installed: pip insta
 pytest.importorskip("pyarrow")
 
 from fidelity_helpers import record, write_lerobot
-from studio_helpers import cli, env, free_port, start, stop, wait_until
+from studio_helpers import (
+    BROWSER_WAIT,
+    cli,
+    env,
+    free_port,
+    page_ready,
+    screenshot,
+    start,
+    stop,
+    wait_until,
+)
 
 from so101sim.fidelity.compare import compare
 from so101sim.fidelity.logs import ArmLog, Episode
 from so101sim.model import arm_index, arm_units, load_model
 from so101sim.model.arm import load_profile
 from so101sim.studio.compare import GAP_S, CompareFrame, CompareStudio, Window
-from so101sim.studio.ghost import arm_bodies
+from so101sim.studio.ghost import GHOST_OPACITY, arm_bodies
 
 ELBOW_OFF = 12.0  # the real elbow, degrees beyond the sim's
 
@@ -71,6 +81,7 @@ def test_the_ghost_follows_the_real_arm_and_the_arm_the_sim(studio, result):
     assert len(moving) == 6 and set(studio.ghost.handles) <= set(moving)
     assert len(studio.ghost.handles) >= 5  # every moving part that has a visual mesh
     jaw = max(studio.ghost.handles)  # the last body of the chain: the moving jaw
+    assert all(h.opacity == GHOST_OPACITY < 1 for h in studio.ghost.handles.values())
     for ep_i, (episode, t) in enumerate([(0, 0.4), (1, 1.0)]):
         tr = result.traces[ep_i]
         k = int(np.searchsorted(tr["t"], t))
@@ -203,3 +214,36 @@ def test_compare_web_refuses_json_and_a_port_in_use_before_replaying(episodes, t
         )  # fmt: skip
     assert r.returncode == 2 and r.stdout == ""  # refused before anything was replayed
     assert f"port {port} on 127.0.0.1 is in use" in r.stderr
+
+
+@pytest.mark.slow
+def test_the_page_draws_the_ghost_beside_the_arm(studio, browser):
+    """In chromium (software WebGL): the panel says the episode, its time and sim − real, and
+    the ghost is drawn: hiding it changes thousands of pixels of the page."""
+    import imageio.v3 as iio
+
+    studio.jump(studio.time_of(0, 0.4))
+    browser.get(studio.url)
+    page_ready(browser)
+    wait_until(
+        lambda: "episode 0 · t = 0.40 s" in browser.find_element("tag name", "body").text,
+        BROWSER_WAIT,
+        "the panel showing the episode and its time",
+    )
+    assert "sim − real" in browser.find_element("tag name", "body").text
+    pixels = lambda png: iio.imread(png)[..., :3].astype(float) / 255.0  # noqa: E731
+    with_ghost = pixels(screenshot(browser))
+    for handle in studio.ghost.handles.values():
+        handle.visible = False
+    try:
+        changed = wait_until(
+            lambda: (
+                int((np.abs(pixels(screenshot(browser)) - with_ghost).max(-1) > 0.1).sum()) > 2000
+            ),
+            BROWSER_WAIT,
+            "the page without the ghost",
+        )
+    finally:
+        for handle in studio.ghost.handles.values():
+            handle.visible = True
+    assert changed
