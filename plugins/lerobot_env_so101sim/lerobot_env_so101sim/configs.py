@@ -41,7 +41,7 @@ from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 from so101sim.errors import SettingError
 from so101sim.model import load_profile
 from so101sim.recording import QUALITY_CHOICES
-from so101sim.scenes import PRESET_CAMERAS, SCENE_PRESETS, randomization
+from so101sim.scenes import PRESET_CAMERAS, SCENE_PRESETS, load_cameras, randomization
 from so101sim.units import JOINT_NAMES
 from so101sim.validation import check_choice, check_count, check_range
 
@@ -85,6 +85,9 @@ class SO101SimEnvConfig(EnvConfig):
     cameras: list[str] | None = None
     """Preset cameras whose images the policy sees (``observation.images.<camera>``); None:
     the policy's, or ``[front, wrist]`` without a policy."""
+    camera_file: str | None = None
+    """A TOML file of cameras of your own (docs/cameras.md): their names join the presets'
+    as cameras the policy may read, and a preset's name there moves that preset."""
     observation_height: int | None = None
     observation_width: int | None = None
     """The cameras' image size; None: the policy's, or 480 x 640 without a policy."""
@@ -120,11 +123,12 @@ class SO101SimEnvConfig(EnvConfig):
             n for n in ("cameras", "observation_height", "observation_width", "object_state")
             if getattr(self, n) is not None
         }  # fmt: skip
+        self._own = {c.name: c for c in load_cameras(self.camera_file)} if self.camera_file else {}
         if self.cameras is not None:
             if not isinstance(self.cameras, list | tuple):
                 raise SettingError(f"cameras = {self.cameras!r}; expected a list such as [front]")
             for cam in self.cameras:
-                check_choice(cam, "camera", PRESET_CAMERAS)
+                check_choice(cam, "camera", [*PRESET_CAMERAS, *self._own])
             self.cameras = list(self.cameras)
         for name in ("observation_height", "observation_width"):
             if getattr(self, name) is not None:
@@ -189,10 +193,12 @@ class SO101SimEnvConfig(EnvConfig):
                     f"(map other names with lerobot-eval's --rename_map)"
                 )
         for cam in cams:
-            if cam not in PRESET_CAMERAS:
+            if cam not in PRESET_CAMERAS and cam not in self._own:
                 raise SettingError(
                     f"{source} takes {OBS_IMAGES}.{cam}; so101sim's environment has the cameras "
-                    f"{', '.join(PRESET_CAMERAS)}: map the name with lerobot-eval's --rename_map "
+                    f"{', '.join([*PRESET_CAMERAS, *self._own])}: give where {cam!r} is in a "
+                    f"camera file (--env.camera_file, docs/cameras.md), or map the name with "
+                    f"lerobot-eval's --rename_map "
                     f'(e.g. --rename_map=\'{{"{OBS_IMAGES}.{next(iter(PRESET_CAMERAS))}": '
                     f'"{OBS_IMAGES}.{cam}"}}\')'
                 )
@@ -265,7 +271,7 @@ class SO101SimEnvConfig(EnvConfig):
         kwargs: dict[str, Any] = {
             "control": "joint",
             "control_hz": float(self.fps),
-            "cameras": list(self.cameras or []),
+            "cameras": [self._own.get(c, c) for c in self.cameras or []],
             "image_size": (self.observation_height, self.observation_width),
             "quality": self.quality,
             "object_state": bool(self.object_state),

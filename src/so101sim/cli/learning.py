@@ -52,8 +52,26 @@ def _size(text: str) -> tuple[int, int]:
     return h, w
 
 
-def _cameras(text: str) -> tuple[str, ...]:
-    return tuple(c for c in text.split(",") if c)
+def _cameras(text: str) -> tuple[Any, ...]:
+    """``--cameras``: presets and camera files, as :func:`so101sim.scenes.parse_cameras`."""
+    from ..errors import So101SimError
+    from ..scenes import parse_cameras  # imported here: it imports MuJoCo (start-up time)
+
+    try:
+        return parse_cameras(text)
+    except So101SimError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _camera_file(text: str) -> str:
+    from ..errors import So101SimError
+    from ..scenes import load_cameras  # imported here: it imports MuJoCo (start-up time)
+
+    try:
+        load_cameras(text)
+    except So101SimError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
 
 
 RANDOMIZE_HELP = (
@@ -83,7 +101,12 @@ def add_learning_commands(sub: SubParsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="episode k is drawn from seed + k")
     p.add_argument("--fps", type=int, default=30, help="frames per simulated second (30)")
     p.add_argument(
-        "--cameras", type=_cameras, default=(), help="comma-separated: front,wrist (none)"
+        "--cameras",
+        type=_cameras,
+        default=(),
+        help="comma-separated presets (front, wrist) and TOML files of cameras of your own "
+        "(their pose and field of view: docs/cameras.md), e.g. front,wrist or wrist,my_rig.toml; "
+        "none by default",
     )
     p.add_argument(
         "--image-size",
@@ -136,6 +159,14 @@ def add_learning_commands(sub: SubParsers) -> None:
     p.add_argument("-o", "--output", help="folder for eval.json and the failures' videos")
     p.add_argument("--max-videos", type=int, default=10, help="failure videos at most (10)")
     p.add_argument("--device", default="cpu", help="torch device (cpu)")
+    p.add_argument(
+        "--cameras",
+        type=_camera_file,
+        default=None,
+        metavar="FILE.toml",
+        help="where the policy's cameras are when they are not the presets (the camera file "
+        "its dataset was recorded with: docs/cameras.md)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_eval)
 
@@ -224,6 +255,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         output=args.output,
         max_videos=args.max_videos,
         device=args.device,
+        camera_file=args.cameras,
     ).checked()  # every setting before the bar: an error is its only line
     bar = tqdm(total=args.episodes, unit="episode", disable=args.no_progress, file=sys.stderr)
     try:
