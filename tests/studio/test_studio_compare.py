@@ -106,7 +106,7 @@ def test_the_ghost_follows_the_real_arm_and_the_arm_the_sim(studio, result):
         assert float(cells[4]) == pytest.approx(-ELBOW_OFF, abs=0.11)
 
 
-def test_the_timeline_holds_both_episodes_one_after_the_other(studio, episodes):
+def test_the_timeline_holds_both_episodes_one_after_the_other(studio, episodes, result):
     frames = studio.timeline.frames
     assert len(frames) == sum(len(ep.times) for ep in episodes)
     start1 = studio.starts[1]
@@ -126,10 +126,19 @@ def test_the_timeline_holds_both_episodes_one_after_the_other(studio, episodes):
     np.testing.assert_allclose(sim[ok], [f.measured[2] for f in frames])
     np.testing.assert_allclose(real[ok], [f.real[2] for f in frames])
     np.testing.assert_allclose(command[ok], [f.commanded[2] for f in frames])
-    studio.chart_joint.value = "wrist_flex"
-    studio._show_joint(None)
+    studio.chart_joint.value = "wrist_flex"  # as the page's picker sets it
     assert studio.chart.title.startswith("wrist_flex (deg)")
     np.testing.assert_allclose(studio.chart.data[3][ok], [f.measured[3] for f in frames])
+    # the episode picker and a worst window's button put the player there (paused)
+    studio.picker.value = "1"
+    assert studio._play_time == pytest.approx(start1) and not studio.playing
+    assert studio.slider.value == pytest.approx(start1, abs=1e-3)
+    studio.picker.value = "0"
+    assert studio._play_time == pytest.approx(0.0)
+    w = next(w for w in result.worst if w.episode == 1)
+    button = studio.window_buttons[result.worst.index(w)]
+    button.value = True  # as the page's click does
+    assert studio._play_time == pytest.approx(studio.time_of(1, w.t0))
     # the player plays on from where it was put, the ghost with it, and stops at the end
     studio.jump(start1)
     studio.speed = 4.0

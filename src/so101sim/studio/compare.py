@@ -182,7 +182,6 @@ class CompareStudio(Studio):
             self.chart.title = _chart_title(pick.value)
 
         pick.on_update(show_joint)
-        self._show_joint = show_joint  # for a test: what the dropdown does
         if shown:
             with gui.add_folder("Worst windows (jump there)"):
                 for w in shown:
