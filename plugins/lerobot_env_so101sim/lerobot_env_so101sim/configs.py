@@ -2,7 +2,10 @@
 
 - ``--env.type=so101sim_pick_cube``: :class:`SO101SimPickCubeEnv` (``so101sim/PickCube-v0``);
 - ``--env.type=so101sim_cube_to_bowl``: :class:`SO101SimCubeToBowlEnv`
-  (``so101sim/CubeToBowl-v0``).
+  (``so101sim/CubeToBowl-v0``);
+- ``so101sim_reach``, ``so101sim_lift_cylinder``, ``so101sim_lift_sphere``,
+  ``so101sim_lift_mesh``, ``so101sim_push``, ``so101sim_stack``, ``so101sim_look_at``: the
+  other tasks of ``so101sim.envs.TASKS`` (docs/tasks.md).
 
 What a policy sees is what the robot plugin (``--robot.type=so101_sim``) records: the six joint
 positions (``observation.state``: body joints in degrees, gripper 0-100, in the order of the
@@ -55,11 +58,15 @@ TASK_SCENES = {
     "Reach-v0": "pick_cube",
     "LiftCylinder-v0": "lift_cylinder",
     "LiftSphere-v0": "lift_sphere",
+    "LiftMesh-v0": "lift_mesh",
+    "Push-v0": "push",
+    "Stack-v0": "stack",
+    "LookAt-v0": "pick_cube",
 }
 """Each task (``--env.task``) and the scene preset it is played in."""
-TASK_EXTRA_STATE = {"Reach-v0": 6}
+TASK_EXTRA_STATE = {"Reach-v0": 6, "LookAt-v0": 2}
 """Numbers a task's ``environment_state`` holds after the objects' poses (reach: the target
-and the tip, x y z each)."""
+and the tip, x y z each; look-at: where the wrist camera sees the cube, u v)."""
 
 
 def state_size(task: str) -> int:
@@ -355,6 +362,38 @@ class SO101SimLiftSphereEnv(SO101SimEnvConfig):
     task: str | None = "LiftSphere-v0"
 
 
+@EnvConfig.register_subclass("so101sim_lift_mesh")
+@dataclass
+class SO101SimLiftMeshEnv(SO101SimEnvConfig):
+    """Lift the octagonal mesh (``so101sim/LiftMesh-v0``, 8 s)."""
+
+    task: str | None = "LiftMesh-v0"
+
+
+@EnvConfig.register_subclass("so101sim_push")
+@dataclass
+class SO101SimPushEnv(SO101SimEnvConfig):
+    """Push the cube onto the mark (``so101sim/Push-v0``, 10 s)."""
+
+    task: str | None = "Push-v0"
+
+
+@EnvConfig.register_subclass("so101sim_stack")
+@dataclass
+class SO101SimStackEnv(SO101SimEnvConfig):
+    """Put the cube on the block (``so101sim/Stack-v0``, 12 s)."""
+
+    task: str | None = "Stack-v0"
+
+
+@EnvConfig.register_subclass("so101sim_look_at")
+@dataclass
+class SO101SimLookAtEnv(SO101SimEnvConfig):
+    """Centre the cube in the wrist camera (``so101sim/LookAt-v0``, 4 s)."""
+
+    task: str | None = "LookAt-v0"
+
+
 __all__ = [
     "ENV_MODULE",
     "NAMESPACE",
@@ -363,8 +402,12 @@ __all__ = [
     "SO101SimCubeToBowlEnv",
     "SO101SimEnvConfig",
     "SO101SimLiftCylinderEnv",
+    "SO101SimLiftMeshEnv",
     "SO101SimLiftSphereEnv",
+    "SO101SimLookAtEnv",
     "SO101SimPickCubeEnv",
+    "SO101SimPushEnv",
     "SO101SimReachEnv",
+    "SO101SimStackEnv",
     "state_size",
 ]

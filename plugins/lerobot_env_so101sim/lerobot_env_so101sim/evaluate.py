@@ -37,6 +37,10 @@ TASK_TYPES = {
     "reach": "Reach-v0",
     "lift_cylinder": "LiftCylinder-v0",
     "lift_sphere": "LiftSphere-v0",
+    "lift_mesh": "LiftMesh-v0",
+    "push": "Push-v0",
+    "stack": "Stack-v0",
+    "look_at": "LookAt-v0",
 }
 """The tasks (``--task``) and their Gymnasium names (``--env.type=so101sim_<task>``)."""
 MAX_EPISODES = 100_000

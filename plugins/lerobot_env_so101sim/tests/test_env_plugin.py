@@ -199,6 +199,18 @@ def test_wilson_interval_and_the_randomize_option():
         parse_env("type=so101sim_pick_cube", "randomize=heavy")
 
 
+@pytest.mark.parametrize("task", ["push", "stack", "look_at", "lift_mesh", "reach"])
+def test_every_task_has_an_env_type_with_its_state_size(task):
+    from lerobot_env_so101sim.configs import state_size
+
+    cfg = parse_env(f"type=so101sim_{task}", "object_state=true", "cameras=[]")
+    assert cfg.gym_id in gym.registry
+    env = gym.make(cfg.gym_id, **cfg.gym_kwargs)
+    obs, _ = env.reset(seed=0)
+    assert obs["environment_state"].shape == (state_size(cfg.task),)
+    env.close()
+
+
 def test_a_camera_file_gives_the_policy_a_camera_of_your_own(tmp_path):
     """``--env.camera_file``: a camera the presets lack (a policy trained on a dataset recorded
     with that camera file) renders where the file puts it, under its name."""

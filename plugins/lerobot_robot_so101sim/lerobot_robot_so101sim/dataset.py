@@ -62,6 +62,9 @@ TASK_TEXT = {
     "cube_to_bowl": "Put the red cube in the bowl.",
     "lift_cylinder": "Pick up the orange cylinder.",
     "lift_sphere": "Pick up the green ball.",
+    "lift_mesh": "Pick up the purple nut.",
+    "push": "Push the red cube onto the green mark.",
+    "stack": "Stack the red cube on the blue block.",
 }
 """The dataset's task text per task (the environments' ``task_description``)."""
 MAX_EPISODES = 100_000
@@ -92,6 +95,9 @@ class DatasetSettings:
     after_success_s: float = 1.0
     workers: int = 1
     use_ray: bool = False
+    ray_address: str = "local"
+    """With ``use_ray``: "local" (start a Ray cluster here with ``workers`` CPUs), "auto" (one
+    running on this machine) or a cluster's ``host:port`` / ``ray://host:port``."""
     video: bool = True
 
     def checked(self) -> DatasetSettings:
@@ -117,6 +123,10 @@ class DatasetSettings:
         check_count(w, "image width", minimum=2, maximum=MAX_IMAGE_SIDE, even=True)
         check_range(self.after_success_s, "after_success_s", low=0.0, high=60.0, unit=" s")
         _randomize_options(self.randomize)  # raises on an unknown preset
+        if not isinstance(self.ray_address, str) or not self.ray_address.strip():
+            raise SettingError(
+                f"ray_address = {self.ray_address!r}; expected local, auto or host:port"
+            )
         if not self.cameras and not self.environment_state:
             log.info("a dataset with neither cameras nor environment_state: ACT refuses it")
         return self

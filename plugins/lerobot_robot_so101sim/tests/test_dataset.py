@@ -113,6 +113,23 @@ def test_so101sim_dataset_trains_with_lerobot_train_and_evaluates(tmp_path):
             assert iio.improps(ep["video"], plugin="pyav").shape[0] == ep["steps"]
 
 
+def test_a_dataset_over_a_local_ray_with_two_workers_equals_the_local_one(tmp_path):
+    """``so101sim dataset --ray``: the episodes as Ray tasks give the dataset the worker
+    processes give, seed for seed."""
+    pytest.importorskip("ray")
+    settings = dict(task="pick_cube", episodes=2, seed=21, environment_state=True)
+    local = generate_dataset(DatasetSettings(root=str(tmp_path / "local"), **settings))
+    remote = generate_dataset(
+        DatasetSettings(root=str(tmp_path / "ray"), use_ray=True, workers=2, **settings)
+    )
+    assert local.seeds == remote.seeds == (21, 22) and local.frames == remote.frames
+    a, b = columns(tmp_path / "local"), columns(tmp_path / "ray")
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+    with pytest.raises(SettingError, match="ray_address"):
+        DatasetSettings(root="x", task="pick_cube", episodes=1, ray_address="").checked()
+
+
 @pytest.mark.cli
 def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take(tmp_path, capsys):
     """The image path: 3 episodes with a camera of the user's own rig (``top``, from a camera

@@ -87,14 +87,17 @@ def add_learning_commands(sub: SubParsers) -> None:
         help="write a LeRobotDataset of a task's scripted expert (needs the LeRobot plugin)",
         description=(
             "Simulates N episodes of TASK's scripted expert (pick_cube, cube_to_bowl, "
-            "lift_cylinder, lift_sphere), each from "
+            "lift_cylinder, lift_sphere, lift_mesh, push, stack), each from "
             "its own seed, faster than real time on worker processes, and writes them with "
             "LeRobot's dataset writer: the features lerobot-record writes on "
             "--robot.type=so101_sim. Failed takes are left out and counted (replaced by the "
             "next seeds). Needs lerobot_robot_so101sim installed."
         ),
     )
-    p.add_argument("task", help="pick_cube, cube_to_bowl, lift_cylinder or lift_sphere")
+    p.add_argument(
+        "task",
+        help="pick_cube, cube_to_bowl, lift_cylinder, lift_sphere, lift_mesh, push or stack",
+    )
     p.add_argument("--episodes", type=int, required=True, help="episodes to write")
     p.add_argument("-o", "--output", required=True, help="the dataset's folder (must not exist)")
     p.add_argument("--repo-id", default="local/so101sim", help="the dataset's repo_id")
@@ -131,7 +134,15 @@ def add_learning_commands(sub: SubParsers) -> None:
         "--after-success", type=float, default=1.0, help="seconds kept after success (1)"
     )
     p.add_argument("--workers", type=int, help="worker processes (default: every core)")
-    p.add_argument("--ray", action="store_true", help="run the episodes as Ray tasks")
+    p.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        default=None,
+        metavar="ADDRESS",
+        help="run the episodes as Ray tasks: --ray (a Ray started here with --workers CPUs), "
+        "--ray auto (a cluster started with `ray start --head`) or --ray host:port",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_dataset)
 
@@ -213,7 +224,8 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         randomize=args.randomize,
         after_success_s=args.after_success,
         workers=_workers(args.workers),
-        use_ray=args.ray,
+        use_ray=args.ray is not None,
+        ray_address=args.ray or "local",
         video=not args.no_video,
     )
     bar = tqdm(total=args.episodes, unit="episode", disable=args.no_progress, file=sys.stderr)

@@ -26,6 +26,10 @@ TASKS = {
     "reach": "so101sim/Reach-v0",
     "lift_cylinder": "so101sim/LiftCylinder-v0",
     "lift_sphere": "so101sim/LiftSphere-v0",
+    "lift_mesh": "so101sim/LiftMesh-v0",
+    "push": "so101sim/Push-v0",
+    "stack": "so101sim/Stack-v0",
+    "look_at": "so101sim/LookAt-v0",
 }
 """Task names (as the scene presets name them) and their Gymnasium ids."""
 
