@@ -13,7 +13,7 @@ from so101sim.preflight import measure as measure_module
 from so101sim.units import STARTING_POSE
 
 INTO_FLOOR = """\
-profile = "minimum_jerk"
+shape = "minimum_jerk"
 [poses]
 down = { shoulder_lift = 45, elbow_flex = 45, wrist_flex = 60 }
 [[steps]]

@@ -24,7 +24,7 @@ from so101sim.units import JOINT_NAMES, STARTING_POSE
 
 # The gripper tipped down into the floor in front of the arm.
 INTO_FLOOR = """\
-profile = "minimum_jerk"
+shape = "minimum_jerk"
 [poses]
 down = { shoulder_lift = 45, elbow_flex = 45, wrist_flex = 60 }
 [[steps]]
@@ -67,7 +67,7 @@ def test_the_linear_profile_spikes_but_smooth_profiles_do_not(lab_report):
     ideal = check_motion_file(lab_motion_path(), arm="official")
     peaks = [j.peak_effort for s in ideal.steps for j in s.joints.values()]
     assert max(peaks) > th.max_effort  # the lab's straight lines saturate for a few ms
-    assert any("smooth profile" in n for n in ideal.notes)
+    assert any("smooth shape" in n for n in ideal.notes)
     peaks = [j.peak_effort for s in lab_report.steps for j in s.joints.values()]
     assert 0.2 < max(peaks) < 0.5 and not lab_report.notes
     smooth = preflight(
@@ -95,8 +95,7 @@ def test_a_target_within_the_margin_of_a_limit_fails(tmp_path):
     hi = default_units().limits_dict()["shoulder_pan"][1]
     path = tmp_path / "limit.toml"
     path.write_text(
-        f"[[steps]]\nmove = {{ shoulder_pan = {hi - 0.5!r} }}\nduration = 2.0\n"
-        'profile = "limited"\n'
+        f'[[steps]]\nmove = {{ shoulder_pan = {hi - 0.5!r} }}\nduration = 2.0\nshape = "limited"\n'
     )
     report = check_motion_file(path)
     assert not report.passed
@@ -162,7 +161,7 @@ def test_thresholds_are_applied(lab_report):
 
 
 def test_stretched_limited_moves_are_noted_or_refused():
-    steps = [Move({**STARTING_POSE, "shoulder_pan": 30.0}, 0.05, profile="limited")]
+    steps = [Move({**STARTING_POSE, "shoulder_pan": 30.0}, 0.05, shape="limited")]
     report = preflight(steps)
     assert any("stretched" in n for n in report.notes)
     from so101sim.errors import TrajectoryLimitError
@@ -223,7 +222,7 @@ def test_check_reports_how_far_the_tip_strayed_from_a_straight_line():
     from so101sim.motion import Move
     from so101sim.preflight import format_report, preflight
 
-    steps = [Move.to_tip((0.22, 0.05, 0.08), 2.0, pitch=-60, profile="minimum_jerk")]
+    steps = [Move.to_tip((0.22, 0.05, 0.08), 2.0, pitch=-60, shape="minimum_jerk")]
     report = preflight(steps, start=STARTING_POSE)
     commanded, measured = report.steps[0].line_deviation_mm
     assert commanded <= 2.0 and 0 <= measured < 20.0

@@ -28,7 +28,7 @@ gives 11 N·m/rad, a 27 ms delay), so its tracking errors are those of the real 
 efforts stay well inside the limit in the lab's moves (the slew-limited goal does not kick
 the motor at a move's start).
 
-Why a time and not the bare peak: the ``linear`` profile (the lab's) starts and stops each move
+Why a time and not the bare peak: the ``linear`` shape (the lab's) starts and stops each move
 with a step in velocity, and the vendored model's stiff actuators (``--arm official``, kp ≈
 998 N·m/rad) meet it by saturating for a few milliseconds (shoulder and elbow: 6–14 ms in the
 lab motion) while the tracking error stays under 0.3°. The servo follows; the report notes
@@ -131,7 +131,7 @@ def preflight(
     ``known``: tip moves already planned on ``model`` (``MotionFile.tip_plans``).
 
     Raises:
-        So101SimError: an invalid step (bad target, duration, profile), or strict refusal.
+        So101SimError: an invalid step (bad target, duration, shape), or strict refusal.
     """
     th = thresholds if thresholds is not None else Thresholds()
     m = model if isinstance(model, mujoco.MjModel) else load_model(model, arm=arm)
@@ -207,7 +207,8 @@ def describe(finding: Finding, th: Thresholds) -> str:
             return (
                 f"{label}: {name}'s effort peaks at {peak:.0%} of its force limit "
                 f"for {saturated * 1000:.0f} ms (allowed: up to "
-                f"{th.max_saturation * 1000:.0f} ms); a smooth profile avoids the spike"
+                f"{th.max_saturation * 1000:.0f} ms); a smooth shape "
+                '(shape = "minimum_jerk") avoids the spike'
             )
         case TrackingFinding(error=error, at=at):
             return (

@@ -130,13 +130,13 @@ def advice(check: str, worst: Worst | None, th: Thresholds) -> str:
     if check == "effort":
         payload = f" (the worst variant carries {worst.variant.payload_kg:.3f} kg)" if worst else ""
         return (
-            f"a slower move (a longer duration for {where}), a smooth profile (profile = "
+            f"a slower move (a longer duration for {where}), a smooth shape (shape = "
             f'"minimum_jerk" or "limited" on those steps), or less payload{payload}'
         )
     if check == "tracking error":
         return (
-            f"a slower move (a longer duration for {where}) or a smooth profile "
-            '(profile = "minimum_jerk"): the servo lags most where a move starts or stops hard'
+            f"a slower move (a longer duration for {where}) or a smooth shape "
+            '(shape = "minimum_jerk"): the servo lags most where a move starts or stops hard'
         )
     return f"move the path of {where} away from what it touches (a waypoint above it)"
 
