@@ -19,7 +19,7 @@ episodes right. ``reset(seed=s)`` seeds world i with ``s + i`` (a list: one seed
 from __future__ import annotations
 
 from copy import deepcopy
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal, get_args
 
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -31,7 +31,9 @@ from ..validation import check_choice, check_count
 from .base import So101TaskEnv
 from .run import make
 
-BACKENDS = ("cpu", "warp")
+Backend = Literal["cpu", "warp"]
+"""Where an environment's worlds step: MuJoCo on the CPU's cores, or MuJoCo Warp on a GPU."""
+BACKENDS: tuple[str, ...] = get_args(Backend)
 MAX_WORLDS = 65_536
 
 
@@ -195,7 +197,7 @@ def make_vec(
     task: str,
     num_envs: int = 1,
     *,
-    backend: str = "cpu",
+    backend: Backend = "cpu",
     nthread: int | None = None,
     **env_kwargs: Any,
 ) -> VectorEnv:

@@ -16,19 +16,25 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal, get_args
 
 from ..errors import SettingError
 from ..validation import check_choice, check_count, check_range
 
-SHAPES = ("box", "cylinder", "sphere", "bowl", "open_box")
+ObjectShape = Literal["box", "cylinder", "sphere", "bowl", "open_box"]
 """Object shapes: solid ``box``, ``cylinder``, ``sphere``; containers ``bowl`` (round, with a
 wall of flat segments) and ``open_box`` (a tray)."""
+SHAPES: tuple[str, ...] = get_args(ObjectShape)
+"""The object shapes (:data:`ObjectShape`), the list the objects are checked against."""
 CONTAINERS = ("bowl", "open_box")
 """Shapes that are targets to put things in: a floor and walls, open at the top."""
-SURFACES = ("table", "floor")
+Surface = Literal["table", "floor"]
 """What the arm and the objects stand on: a table (a box whose top is z = 0, the floor below
 it) or the shipped floor plane itself."""
-CONES = ("elliptic", "pyramidal")
+SURFACES: tuple[str, ...] = get_args(Surface)
+Cone = Literal["elliptic", "pyramidal"]
+"""MuJoCo's friction cone for the scene's contacts."""
+CONES: tuple[str, ...] = get_args(Cone)
 
 MIN_SIZE_M, MAX_SIZE_M = 0.005, 0.5
 MIN_MASS_KG, MAX_MASS_KG = 0.001, 5.0
@@ -78,7 +84,7 @@ class SceneObject:
     floor thickness."""
 
     name: str
-    shape: str = "box"
+    shape: ObjectShape = "box"
     size: tuple[float, ...] = (0.025, 0.025, 0.025)
     mass: float = 0.03
     rgba: tuple[float, ...] = (0.85, 0.15, 0.1, 1.0)
@@ -156,7 +162,7 @@ class Table:
     at ``center``, its top at z = 0 (the base's height), ``height`` above the floor (which is
     moved down to meet its legs' end); ``"floor"``: the shipped floor plane, nothing added."""
 
-    surface: str = "table"
+    surface: Surface = "table"
     size: tuple[float, float] = (0.7, 0.9)
     center: tuple[float, float] = (0.2, 0.0)
     height: float = 0.75
@@ -203,7 +209,7 @@ class ContactSettings:
     condim: int = 4
     solref: tuple[float, float] = (0.004, 1.0)
     solimp: tuple[float, ...] = (0.99, 0.999, 0.001, 0.5, 2.0)
-    cone: str = "elliptic"
+    cone: Cone = "elliptic"
     impratio: float = 10.0
     pad_friction: float = 1.5
     torsional: float = 0.01
