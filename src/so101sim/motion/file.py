@@ -80,7 +80,7 @@ from ..units import (
     JOINT_NAMES,
     ArmUnits,
 )
-from ..validation import MAX_DURATION_S
+from ..validation import MAX_DURATION_S, check_name
 from .lines import (
     MAX_FILE_BYTES,
     KeyLines,
@@ -183,7 +183,7 @@ class _Loader(FileReader):
         """Step ``i`` (0-based) from the target ``current``, and the target after it."""
         where = ("steps", i)
         kind = self.step_kind(i, raw, where)
-        name = self.step_name(raw, where)
+        name = self.step_name(i, raw, where)
         if kind == "hold":
             d = self.duration(raw["hold"], (*where, "hold"), f"step {i + 1} hold", MAX_DURATION_S)
             return Hold(d, phase=name or "hold"), current
@@ -216,10 +216,15 @@ class _Loader(FileReader):
         self.check_keys(raw, STEP_KEYS[kinds[0]], where, f"a {kinds[0]} step")
         return kinds[0]
 
-    def step_name(self, raw: Mapping[str, Any], where: Where) -> str | None:
+    def step_name(self, i: int, raw: Mapping[str, Any], where: Where) -> str | None:
+        """The step's ``name``: a string on one line (no control character: it is printed in
+        every report, :func:`so101sim.validation.check_name`), or None."""
         name = raw.get("name")
         if name is not None and not isinstance(name, str):
             raise self.fail((*where, "name"), f"name must be a string, got {show(name)}")
+        if name is not None:
+            with self.reasons((*where, "name")):
+                check_name(name, f"step {i + 1} name")
         return name
 
     def tip_move(

@@ -30,7 +30,7 @@ from ..units import (
     normalize_joint_name,
     parse_pose,
 )
-from ..validation import check_choice, check_duration
+from ..validation import check_choice, check_duration, check_name
 from .lines import KeyLines
 
 log = logging.getLogger(__name__)
@@ -177,6 +177,8 @@ class FileReader:
                     ("poses", name),
                     f"pose {show(name)} is built in and cannot be redefined; choose another name",
                 )
+            with self.reasons(("poses", name)):  # a pose's name is a step's default name
+                check_name(name, "pose name")
             poses[name] = self.pose(value, ("poses", name))
         return poses
 

@@ -67,6 +67,7 @@ from ..model.load import arm_units, load_model
 from ..motion.file import load_motion
 from ..motion.segments import Segment
 from ..units import STARTING_POSE, Pose, format_value
+from ..validation import escape_controls
 from .judge import (
     ContactFinding,
     EffortFinding,
@@ -180,7 +181,7 @@ def check_motion_file(
 # ---------------------------------------------------------------------------- wording
 def describe(finding: Finding, th: Thresholds) -> str:
     """A finding in words, as listed under FAIL or as a note."""
-    label = f"step {finding.step} ({finding.phase})"
+    label = f"step {finding.step} ({escape_controls(finding.phase, lines=False)})"
     name = finding.joint
 
     def value(v: float) -> str:
@@ -258,7 +259,8 @@ def format_report(report: PreflightReport) -> str:
 
 def _step_rows(s: StepCheck, marked: set[tuple[int, str, type]]) -> list[str]:
     where = f" (line {s.line})" if s.line else ""
-    rows = [f"{s.index:<5}{s.phase[:13]:<14}{s.kind} {s.start_time:.3f}-{s.end_time:.3f} s{where}"]
+    phase = escape_controls(s.phase, lines=False)[:13]  # a name from the API may hold anything
+    rows = [f"{s.index:<5}{phase:<14}{s.kind} {s.start_time:.3f}-{s.end_time:.3f} s{where}"]
     for name, j in s.joints.items():
         flags = ["!" if (s.index, name, kind) in marked else " " for kind in _MARKED]
         rows.append(_joint_row(name, j, flags))

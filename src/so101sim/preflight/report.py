@@ -15,6 +15,7 @@ import numpy as np
 from ..errors import SettingError
 from ..recording.paths import check_output_path, write_atomically
 from ..recording.plot import PLOT_SUFFIXES
+from ..validation import escape_controls
 from .check import describe
 from .judge import Thresholds
 from .rollout import VariantOutcome
@@ -110,7 +111,9 @@ def _kind(finding: Any) -> str:
 
 
 def _steps(findings: list[Any]) -> str:
-    named = dict.fromkeys(f"step {f.step} ({f.phase})" for f in findings)
+    named = dict.fromkeys(
+        f"step {f.step} ({escape_controls(f.phase, lines=False)})" for f in findings
+    )
     return ", ".join(named) if named else "the steps named above"
 
 
