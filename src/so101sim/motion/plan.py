@@ -20,8 +20,10 @@ import mujoco
 import numpy as np
 
 from ..errors import DurationError, SettingError
+from ..exitgate import mujoco_call
 from ..model.load import arm_units
 from ..sim.limited import LimitedProfile, ShortMove, short_move, too_short
+from ..sim.moveplan import plan_joint_move, plan_tip_move
 from ..sim.profiles import MAX_MOVE_DURATION_S, SHAPES, get_profile, plan, steps_for
 from ..sim.simulation import TRACE_AUTO_STEPS, Observer, Simulation
 from ..units import Pose
@@ -152,10 +154,11 @@ def plan_segments(
             if done is not None and np.array_equal(done[0], current):
                 targets = done[1]
             else:
-                _, targets = sim.plan_tip_move(
-                    seg.tip, seg.duration, pitch=seg.pitch, roll=seg.roll, path=seg.path,
-                    shape=seg.shape,
-                )  # fmt: skip
+                with mujoco_call():  # as Simulation.plan_tip_move, which would check n again
+                    _, targets = plan_tip_move(
+                        sim, seg.tip, seg.duration, pitch=seg.pitch, roll=seg.roll,
+                        path=seg.path, shape=seg.shape, steps=n,
+                    )  # fmt: skip
             entry = PlannedSegment(seg, current, targets, len(targets))
             prof = get_profile(seg.shape, units)
             if seg.path == "joint" and isinstance(prof, LimitedProfile):  # to the IK's goal
@@ -171,7 +174,8 @@ def plan_segments(
                     if strict:  # refused once the whole motion is checked: go on from its goal
                         sim.command_array(goal, check=False)
                         continue
-            _, targets = sim.plan_move(seg.target, seg.duration, shape=seg.shape, clip=clip)
+            # n: the duration checked above, once (Simulation.plan_move would check it again)
+            _, targets = plan_joint_move(sim, seg.target, seg.duration, seg.shape, clip, steps=n)
             if len(targets) > _KEEP_ROWS and isinstance(seg.shape, str) and seg.shape in SHAPES:
                 recipe = (targets[-1].copy(), get_profile(seg.shape), dt)
                 entry = PlannedSegment(seg, current, None, len(targets), recipe)

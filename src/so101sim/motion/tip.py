@@ -27,8 +27,10 @@ import mujoco
 import numpy as np
 
 from ..errors import JointNameError, SettingError, UnreachableError
+from ..exitgate import mujoco_call
 from ..model.load import load_model
-from ..sim.moveplan import Shape
+from ..sim.moveplan import Shape, plan_tip_move
+from ..sim.profiles import step_count
 from ..sim.simulation import Simulation
 from ..units import normalize_joint_name
 from ..validation import check_choice, check_range, shown
@@ -161,14 +163,17 @@ class TipPlanner:
         if self._sim is None:
             self._sim = Simulation(self._model or load_model(), initial_pose=None)
         self._sim.command_array(current, check=False)
-        start, targets = self._sim.plan_tip_move(
-            move.tip,  # type: ignore[arg-type]
-            move.duration,
-            pitch=move.pitch,
-            roll=move.roll,
-            path=move.path,
-            shape=move.shape,
-        )
+        with mujoco_call():  # as Simulation.plan_tip_move; the loader checked the duration
+            start, targets = plan_tip_move(
+                self._sim,
+                move.tip,  # type: ignore[arg-type]
+                move.duration,
+                pitch=move.pitch,
+                roll=move.roll,
+                path=move.path,
+                shape=move.shape,
+                steps=step_count(move.duration, self._sim.timestep),
+            )
         self.last = (start, targets)
         return start, targets
 
