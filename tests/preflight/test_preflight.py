@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import pytest
+from preflight_helpers import floor_motion
 
 from so101sim import cli
 from so101sim.errors import SettingError
@@ -21,18 +22,6 @@ from so101sim.preflight import (
 from so101sim.preflight.judge import EffortFinding, TrackingFinding, judge
 from so101sim.preflight.measure import JointCheck, Measurements, StepCheck
 from so101sim.units import JOINT_NAMES, STARTING_POSE
-
-# The gripper tipped down into the floor in front of the arm.
-INTO_FLOOR = """\
-shape = "minimum_jerk"
-[poses]
-down = { shoulder_lift = 45, elbow_flex = 45, wrist_flex = 60 }
-[[steps]]
-move = "down"
-duration = 2.0
-[[steps]]
-hold = 0.5
-"""
 
 
 @pytest.fixture(scope="module")
@@ -82,8 +71,7 @@ def test_the_linear_profile_spikes_but_smooth_profiles_do_not(lab_report):
 
 
 def test_driving_into_the_floor_fails_with_the_contact(tmp_path):
-    path = tmp_path / "floor.toml"
-    path.write_text(INTO_FLOOR)
+    path = floor_motion(tmp_path)
     report = check_motion_file(path)
     assert not report.passed
     contacts = {(c.body1, c.body2) for s in report.steps for c in s.contacts}
@@ -174,8 +162,7 @@ def test_the_table_then_pass_or_fail(lab_report, tmp_path):
     text = format_report(lab_report)
     assert text.splitlines()[-1] == "PASS"
     assert all(name in text for name in JOINT_NAMES)
-    path = tmp_path / "floor.toml"
-    path.write_text(INTO_FLOOR)
+    path = floor_motion(tmp_path)
     failed = format_report(check_motion_file(path))
     assert "FAIL" in failed and "contact:" in failed
 
@@ -184,8 +171,7 @@ def test_cli_check_exit_codes_and_json(tmp_path, capsys):
     assert cli.main(["check", str(lab_motion_path())]) == 0
     assert "PASS" in capsys.readouterr().out
 
-    path = tmp_path / "floor.toml"
-    path.write_text(INTO_FLOOR)
+    path = floor_motion(tmp_path)
     assert cli.main(["check", str(path), "--json"]) == 1
     data = json.loads(capsys.readouterr().out)
     assert data["passed"] is False and data["failures"]
