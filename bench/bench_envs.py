@@ -202,9 +202,9 @@ def batched(repeats: int, worlds: int) -> None:
         )
 
 
-def success(seeds: int) -> None:
+def success(seeds: int, tasks: list[str]) -> None:
     print(f"scripted experts over seeds 0..{seeds - 1}:")
-    for task in TASKS:
+    for task in tasks:
         t0 = time.perf_counter()
         score = evaluate_expert(task, range(seeds))
         wall = time.perf_counter() - t0
@@ -276,13 +276,20 @@ def main() -> None:
     parser.add_argument("--ablation-placements", type=int, default=10)
     parser.add_argument("--worlds", type=int, default=64, help="worlds of the batched run")
     parser.add_argument("--only", choices=("speed", "batched", "success", "grasps", "ablation"))
+    parser.add_argument(
+        "--tasks", default=",".join(TASKS), help="the success section's tasks, comma-separated"
+    )
     args = parser.parse_args()
+    tasks = [t for t in args.tasks.split(",") if t]
+    unknown = sorted(set(tasks) - set(TASKS))
+    if unknown:
+        parser.error(f"unknown task(s) {', '.join(unknown)}; expected some of {', '.join(TASKS)}")
     if args.only in (None, "speed"):
         speed(args.repeats)
     if args.only in (None, "batched"):
         batched(min(args.repeats, 5), args.worlds)
     if args.only in (None, "success"):
-        success(args.seeds)
+        success(args.seeds, tasks)
     if args.only in (None, "grasps"):
         grasps(args.placements)
     if args.only in (None, "ablation"):

@@ -87,7 +87,9 @@ def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
-def make_venv(task: str, num_envs: int, seed: int, nthread: int | None) -> Any:
+def make_venv(
+    task: str, num_envs: int, seed: int, nthread: int | None, ray: str | None = None
+) -> Any:
     """stable-baselines3's VecEnv over so101sim's batched environment (same-step autoreset:
     the episode's last observation goes in ``info["terminal_observation"]``, as sb3 expects),
     the actions scaled from -1..1 to the environment's delta range."""
@@ -99,7 +101,8 @@ def make_venv(task: str, num_envs: int, seed: int, nthread: int | None) -> Any:
     class So101SB3VecEnv(VecEnv):
         def __init__(self) -> None:
             kwargs = {**ENV_KWARGS[task], "terminate_on_success": False}
-            self.venv = make_vec(TASK_OF.get(task, task), num_envs, nthread=nthread, **kwargs)
+            where = {"backend": "ray", "address": ray} if ray else {"nthread": nthread}
+            self.venv = make_vec(TASK_OF.get(task, task), num_envs, **where, **kwargs)
             single = self.venv.single_observation_space
             size = sum(single[k].shape[0] for k in OBS_KEYS)
             obs_space = spaces.Box(-np.inf, np.inf, (size,), dtype=np.float32)
@@ -221,6 +224,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--task", default="reach", choices=sorted(ENV_KWARGS))
     p.add_argument("--envs", type=int, default=16)
     p.add_argument("--nthread", type=int, default=None)
+    p.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        default=None,
+        help="step the worlds on Ray actors: local (start a Ray here), auto or host:port",
+    )
     p.add_argument("--minutes", type=float, default=14.0, help="training wall-clock budget")
     p.add_argument("--steps", type=int, default=3_000_000, help="at most this many env steps")
     p.add_argument("--target", type=float, default=0.97, help="stop once the last 100 reach it")
@@ -237,7 +246,9 @@ def main(argv: list[str] | None = None) -> int:
 
     torch.set_num_threads(1)
     args.out.mkdir(parents=True, exist_ok=True)
-    raw = make_venv(args.task, args.envs if not args.smoke else 2, args.seed, args.nthread)
+    raw = make_venv(
+        args.task, args.envs if not args.smoke else 2, args.seed, args.nthread, args.ray
+    )
     venv = VecNormalize(raw, norm_obs=True, norm_reward=True, gamma=0.98)
     n_steps = 16 if args.smoke else 128
     model = PPO(
@@ -301,7 +312,8 @@ def main(argv: list[str] | None = None) -> int:
         "train_minutes": round(train_minutes, 2),
         "train_steps": int(model.num_timesteps),
         "envs": raw.num_envs,
-        "nthread": raw.venv.nthread,
+        "nthread": getattr(raw.venv, "nthread", None),
+        "ray_workers": getattr(raw.venv, "workers", None),
     }
     if not args.smoke:
         summary.update(

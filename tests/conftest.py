@@ -1,14 +1,19 @@
+import atexit
 import os
+import shutil
 import tempfile
 
 # Offscreen rendering and viewer-less runs: no display in tests unless a test sets one up.
 os.environ.pop("DISPLAY", None)
 os.environ.pop("WAYLAND_DISPLAY", None)
 os.environ.setdefault("MUJOCO_GL", "egl")
-# Compiled models are cached in a folder of this test session, not the user's cache.
-os.environ.setdefault("SO101SIM_CACHE_DIR", tempfile.mkdtemp(prefix="so101sim-test-cache-"))
+# Compiled models are cached in a folder of this test session, not the user's cache, removed
+# when the session ends (pytest-xdist's workers inherit the variable and share the folder).
+if "SO101SIM_CACHE_DIR" not in os.environ:
+    _CACHE = tempfile.mkdtemp(prefix="so101sim-test-cache-")
+    os.environ["SO101SIM_CACHE_DIR"] = _CACHE
+    atexit.register(shutil.rmtree, _CACHE, ignore_errors=True)
 
-import shutil
 import subprocess
 
 import pytest

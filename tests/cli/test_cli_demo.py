@@ -53,9 +53,9 @@ def test_demo_cube_to_bowl_headless(capsys):
 
 
 def test_demo_unknown_task_lists_the_tasks(capsys):
-    assert main(["demo", "stack", "--headless"]) == 2
+    assert main(["demo", "juggle", "--headless"]) == 2
     err = capsys.readouterr().err
-    assert "unknown task 'stack'" in err and "pick_cube, cube_to_bowl" in err
+    assert "unknown task 'juggle'" in err and "pick_cube, cube_to_bowl" in err
 
 
 @pytest.mark.parametrize("option", [["--fps", "0"], ["--width", "7"], ["--seed", "-1"]])

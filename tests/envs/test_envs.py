@@ -27,7 +27,14 @@ from so101sim.errors import CameraError, SettingError
 from so101sim.recording import VideoSettings
 from so101sim.units import STARTING_POSE
 
-IDS = ["so101sim/PickCube-v0", "so101sim/CubeToBowl-v0"]
+IDS = [
+    "so101sim/PickCube-v0",
+    "so101sim/CubeToBowl-v0",
+    "so101sim/Push-v0",
+    "so101sim/Stack-v0",
+    "so101sim/LookAt-v0",
+    "so101sim/LiftMesh-v0",
+]
 # Absolute joint targets in degrees are the arm's own action space (what LeRobot sends), not
 # the [-1, 1] box the checker recommends for RL.
 pytestmark = pytest.mark.filterwarnings("ignore:.*symmetric and normalized space")
@@ -198,8 +205,8 @@ def test_bad_settings_and_actions_are_refused_with_what_to_use():
         PickCubeEnv(render_camera="top")
     with pytest.raises(SettingError, match="unknown quality preset 'best'"):
         PickCubeEnv(quality="best")
-    with pytest.raises(SettingError, match="unknown task 'stack'"):
-        run_expert("stack")
+    with pytest.raises(SettingError, match="unknown task 'juggle'"):
+        run_expert("juggle")
     env = CubeToBowlEnv()
     env.reset(seed=0)
     with pytest.raises(SettingError, match="expected 6 finite numbers"):

@@ -180,3 +180,9 @@ def test_warp_backend_refuses_the_missing_package(monkeypatch):
     monkeypatch.setattr(builtins, "__import__", no_warp)
     with pytest.raises(MissingDependencyError, match="so101sim\\[warp\\]"):
         make_vec("reach", 2, backend="warp", arm="official")
+
+
+@pytest.mark.parametrize("task", ["push", "look_at"])
+def test_vector_env_of_the_newer_tasks_is_single_envs(task):
+    # push (a mark that touches nothing), look_at (the wrist camera's projection in the state)
+    assert _compare(task, 2, 8, seed=4, episode_seconds=0.2) >= 2

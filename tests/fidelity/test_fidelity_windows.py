@@ -18,8 +18,9 @@ from fidelity_helpers import as_read, commands, record, write_lerobot
 from so101sim.cli import main
 from so101sim.errors import CalibrationError
 from so101sim.fidelity.calibration import lerobot_calibration_path
-from so101sim.fidelity.compare import compare, plot_heading
+from so101sim.fidelity.compare import compare
 from so101sim.fidelity.logs import ArmLog, Episode
+from so101sim.fidelity.plot import plot_heading
 from so101sim.fidelity.windows import blocked_gripper, still_frames, worst_windows
 from so101sim.model.arm import load_profile
 from so101sim.units import JOINT_NAMES
@@ -94,7 +95,7 @@ def test_compare_splits_holds_from_moves_and_leaves_a_blocked_gripper_out(tmp_pa
         "episode 0\nshaded red: the worst windows of error; blue: the real gripper blocked"
     )
     two = dataclasses.replace(res, episodes=[2, 3], worst=[])
-    assert plot_heading(two, False).startswith("episode 2 (the first of the 2 compared; each")
+    assert plot_heading(two, False).startswith("episodes 2, 3, one after another (dashed: where")
 
 
 def test_robot_id_reads_lerobots_calibration_folder(tmp_path, monkeypatch):

@@ -217,5 +217,5 @@ def test_without_a_scene_the_follower_has_the_plain_arm():
 
 
 def test_an_unknown_scene_is_refused_listing_the_presets():
-    with pytest.raises(RobotConfigError, match=r"unknown scene 'stack'.*pick_cube, cube_to_bowl"):
-        SO101SimFollowerConfig(scene="stack")
+    with pytest.raises(RobotConfigError, match=r"unknown scene 'juggle'.*pick_cube, cube_to_bowl"):
+        SO101SimFollowerConfig(scene="juggle")

@@ -131,7 +131,7 @@ def test_sim_task_needs_its_objects():
     with pytest.raises(SettingError, match="bowl"):
         sim_task("cube_to_bowl", sim.model, sim, robot_scene.robot_scene(robot).scene, FPS)
     with pytest.raises(SettingError, match="pick_cube, cube_to_bowl"):
-        sim_task("stack", sim.model, sim, robot_scene.robot_scene(robot).scene, FPS)
+        sim_task("juggle", sim.model, sim, robot_scene.robot_scene(robot).scene, FPS)
 
 
 @pytest.mark.parametrize("seed", [0, 4])

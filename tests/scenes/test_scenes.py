@@ -204,7 +204,7 @@ def test_a_motion_file_scene_section_and_its_errors():
     )
     bad = [
         ({"shelf": 1}, "unknown key 'shelf' in \\[scene\\]"),
-        ({"preset": "stack"}, "unknown scene preset 'stack'"),
+        ({"preset": "juggle"}, "unknown scene preset 'juggle'"),
         ({"objects": [{"name": "c", "mass": 0}]}, "object 'c' mass = 0.0 kg is invalid"),
         ({"objects": [{"name": "c", "size": 2.0}]}, "object 'c' size = 2.0 m is invalid"),
         ({"objects": [{"name": "c", "shape": "cone"}]}, "unknown object 'c' shape 'cone'"),

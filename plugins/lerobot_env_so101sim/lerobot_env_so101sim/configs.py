@@ -2,7 +2,10 @@
 
 - ``--env.type=so101sim_pick_cube``: :class:`SO101SimPickCubeEnv` (``so101sim/PickCube-v0``);
 - ``--env.type=so101sim_cube_to_bowl``: :class:`SO101SimCubeToBowlEnv`
-  (``so101sim/CubeToBowl-v0``).
+  (``so101sim/CubeToBowl-v0``);
+- ``so101sim_reach``, ``so101sim_lift_cylinder``, ``so101sim_lift_sphere``,
+  ``so101sim_lift_mesh``, ``so101sim_push``, ``so101sim_stack``, ``so101sim_look_at``: the
+  other tasks of ``so101sim.envs.TASKS`` (docs/tasks.md).
 
 What a policy sees is what the robot plugin (``--robot.type=so101_sim``) records: the six joint
 positions (``observation.state``: body joints in degrees, gripper 0-100, in the order of the
@@ -41,7 +44,7 @@ from lerobot.utils.constants import ACTION, OBS_ENV_STATE, OBS_IMAGES, OBS_STATE
 from so101sim.errors import SettingError
 from so101sim.model import load_profile
 from so101sim.recording import QUALITY_CHOICES
-from so101sim.scenes import PRESET_CAMERAS, SCENE_PRESETS, randomization
+from so101sim.scenes import PRESET_CAMERAS, SCENE_PRESETS, load_cameras, randomization
 from so101sim.units import JOINT_NAMES
 from so101sim.validation import check_choice, check_count, check_range
 
@@ -55,11 +58,15 @@ TASK_SCENES = {
     "Reach-v0": "pick_cube",
     "LiftCylinder-v0": "lift_cylinder",
     "LiftSphere-v0": "lift_sphere",
+    "LiftMesh-v0": "lift_mesh",
+    "Push-v0": "push",
+    "Stack-v0": "stack",
+    "LookAt-v0": "pick_cube",
 }
 """Each task (``--env.task``) and the scene preset it is played in."""
-TASK_EXTRA_STATE = {"Reach-v0": 6}
+TASK_EXTRA_STATE = {"Reach-v0": 6, "LookAt-v0": 2}
 """Numbers a task's ``environment_state`` holds after the objects' poses (reach: the target
-and the tip, x y z each)."""
+and the tip, x y z each; look-at: where the wrist camera sees the cube, u v)."""
 
 
 def state_size(task: str) -> int:
@@ -85,6 +92,9 @@ class SO101SimEnvConfig(EnvConfig):
     cameras: list[str] | None = None
     """Preset cameras whose images the policy sees (``observation.images.<camera>``); None:
     the policy's, or ``[front, wrist]`` without a policy."""
+    camera_file: str | None = None
+    """A TOML file of cameras of your own (docs/cameras.md): their names join the presets'
+    as cameras the policy may read, and a preset's name there moves that preset."""
     observation_height: int | None = None
     observation_width: int | None = None
     """The cameras' image size; None: the policy's, or 480 x 640 without a policy."""
@@ -120,11 +130,12 @@ class SO101SimEnvConfig(EnvConfig):
             n for n in ("cameras", "observation_height", "observation_width", "object_state")
             if getattr(self, n) is not None
         }  # fmt: skip
+        self._own = {c.name: c for c in load_cameras(self.camera_file)} if self.camera_file else {}
         if self.cameras is not None:
             if not isinstance(self.cameras, list | tuple):
                 raise SettingError(f"cameras = {self.cameras!r}; expected a list such as [front]")
             for cam in self.cameras:
-                check_choice(cam, "camera", PRESET_CAMERAS)
+                check_choice(cam, "camera", [*PRESET_CAMERAS, *self._own])
             self.cameras = list(self.cameras)
         for name in ("observation_height", "observation_width"):
             if getattr(self, name) is not None:
@@ -189,10 +200,12 @@ class SO101SimEnvConfig(EnvConfig):
                     f"(map other names with lerobot-eval's --rename_map)"
                 )
         for cam in cams:
-            if cam not in PRESET_CAMERAS:
+            if cam not in PRESET_CAMERAS and cam not in self._own:
                 raise SettingError(
                     f"{source} takes {OBS_IMAGES}.{cam}; so101sim's environment has the cameras "
-                    f"{', '.join(PRESET_CAMERAS)}: map the name with lerobot-eval's --rename_map "
+                    f"{', '.join([*PRESET_CAMERAS, *self._own])}: give where {cam!r} is in a "
+                    f"camera file (--env.camera_file, docs/cameras.md), or map the name with "
+                    f"lerobot-eval's --rename_map "
                     f'(e.g. --rename_map=\'{{"{OBS_IMAGES}.{next(iter(PRESET_CAMERAS))}": '
                     f'"{OBS_IMAGES}.{cam}"}}\')'
                 )
@@ -265,7 +278,7 @@ class SO101SimEnvConfig(EnvConfig):
         kwargs: dict[str, Any] = {
             "control": "joint",
             "control_hz": float(self.fps),
-            "cameras": list(self.cameras or []),
+            "cameras": [self._own.get(c, c) for c in self.cameras or []],
             "image_size": (self.observation_height, self.observation_width),
             "quality": self.quality,
             "object_state": bool(self.object_state),
@@ -349,6 +362,38 @@ class SO101SimLiftSphereEnv(SO101SimEnvConfig):
     task: str | None = "LiftSphere-v0"
 
 
+@EnvConfig.register_subclass("so101sim_lift_mesh")
+@dataclass
+class SO101SimLiftMeshEnv(SO101SimEnvConfig):
+    """Lift the octagonal mesh (``so101sim/LiftMesh-v0``, 8 s)."""
+
+    task: str | None = "LiftMesh-v0"
+
+
+@EnvConfig.register_subclass("so101sim_push")
+@dataclass
+class SO101SimPushEnv(SO101SimEnvConfig):
+    """Push the cube onto the mark (``so101sim/Push-v0``, 10 s)."""
+
+    task: str | None = "Push-v0"
+
+
+@EnvConfig.register_subclass("so101sim_stack")
+@dataclass
+class SO101SimStackEnv(SO101SimEnvConfig):
+    """Put the cube on the block (``so101sim/Stack-v0``, 12 s)."""
+
+    task: str | None = "Stack-v0"
+
+
+@EnvConfig.register_subclass("so101sim_look_at")
+@dataclass
+class SO101SimLookAtEnv(SO101SimEnvConfig):
+    """Centre the cube in the wrist camera (``so101sim/LookAt-v0``, 4 s)."""
+
+    task: str | None = "LookAt-v0"
+
+
 __all__ = [
     "ENV_MODULE",
     "NAMESPACE",
@@ -357,8 +402,12 @@ __all__ = [
     "SO101SimCubeToBowlEnv",
     "SO101SimEnvConfig",
     "SO101SimLiftCylinderEnv",
+    "SO101SimLiftMeshEnv",
     "SO101SimLiftSphereEnv",
+    "SO101SimLookAtEnv",
     "SO101SimPickCubeEnv",
+    "SO101SimPushEnv",
     "SO101SimReachEnv",
+    "SO101SimStackEnv",
     "state_size",
 ]

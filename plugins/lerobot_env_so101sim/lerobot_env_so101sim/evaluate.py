@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from so101sim.errors import OutputPathError, SettingError
-from so101sim.scenes import randomization
+from so101sim.scenes import load_cameras, randomization
 from so101sim.validation import check_choice, check_count
 
 TASK_TYPES = {
@@ -37,6 +37,10 @@ TASK_TYPES = {
     "reach": "Reach-v0",
     "lift_cylinder": "LiftCylinder-v0",
     "lift_sphere": "LiftSphere-v0",
+    "lift_mesh": "LiftMesh-v0",
+    "push": "Push-v0",
+    "stack": "Stack-v0",
+    "look_at": "LookAt-v0",
 }
 """The tasks (``--task``) and their Gymnasium names (``--env.type=so101sim_<task>``)."""
 MAX_EPISODES = 100_000
@@ -59,6 +63,8 @@ class EvalSettings:
     output: str | None = None
     max_videos: int = 10
     device: str = "cpu"
+    camera_file: str | None = None
+    """Where the policy's cameras of your own are (a TOML camera file, docs/cameras.md)."""
 
     def checked(self) -> EvalSettings:
         check_choice(self.task, "task", TASK_TYPES)
@@ -75,6 +81,8 @@ class EvalSettings:
                 f"{self.policy!r} holds no config.json; expected a policy folder as "
                 f"lerobot-train saves it (.../checkpoints/last/pretrained_model)"
             )
+        if self.camera_file is not None:
+            load_cameras(self.camera_file)  # an unreadable file or a bad camera: said now
         if self.output is not None and Path(self.output, "eval.json").exists():
             raise OutputPathError(
                 f"{self.output!r} holds an earlier evaluation (eval.json, its failure videos); "
@@ -182,6 +190,7 @@ def _setup(settings: EvalSettings) -> dict[str, Any]:
         episode_length=settings.episode_length,
         fps=settings.fps,
         randomize=settings.randomize,
+        camera_file=settings.camera_file,
     )
     policy_cfg = PreTrainedConfig.from_pretrained(settings.policy)
     policy_cfg.pretrained_path = settings.policy

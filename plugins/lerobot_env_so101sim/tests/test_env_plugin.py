@@ -197,3 +197,39 @@ def test_wilson_interval_and_the_randomize_option():
     assert "randomize" not in parse_env("type=so101sim_pick_cube").gym_kwargs
     with pytest.raises(draccus.utils.ParsingError):
         parse_env("type=so101sim_pick_cube", "randomize=heavy")
+
+
+@pytest.mark.parametrize("task", ["push", "stack", "look_at", "lift_mesh", "reach"])
+def test_every_task_has_an_env_type_with_its_state_size(task):
+    from lerobot_env_so101sim.configs import state_size
+
+    cfg = parse_env(f"type=so101sim_{task}", "object_state=true", "cameras=[]")
+    assert cfg.gym_id in gym.registry
+    env = gym.make(cfg.gym_id, **cfg.gym_kwargs)
+    obs, _ = env.reset(seed=0)
+    assert obs["environment_state"].shape == (state_size(cfg.task),)
+    env.close()
+
+
+def test_a_camera_file_gives_the_policy_a_camera_of_your_own(tmp_path):
+    """``--env.camera_file``: a camera the presets lack (a policy trained on a dataset recorded
+    with that camera file) renders where the file puts it, under its name."""
+    rig = tmp_path / "rig.toml"
+    rig.write_text("[top]\npos = [0.2, 0.0, 0.8]\nlookat = [0.2, 0.0, 0.0]\nfovy = 60\n")
+    with pytest.raises(SettingError, match="unknown camera 'top'"):
+        SO101SimPickCubeEnv(cameras=["top"])
+    cfg = parse_env("type=so101sim_pick_cube", f"camera_file={rig}", "cameras=[top,wrist]")
+    assert set(env_to_policy_features(cfg)) >= {"observation.images.top"}
+    top, wrist = cfg.gym_kwargs["cameras"]
+    assert top.name == "top" and top.pos == (0.2, 0.0, 0.8) and wrist == "wrist"
+    env = gym.make(cfg.gym_id, **{**cfg.gym_kwargs, "image_size": (48, 64)})
+    try:
+        obs, _ = env.reset(seed=0)
+        assert obs["pixels"]["top"].shape == (48, 64, 3)
+    finally:
+        env.close()
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[top]\npos = [0.2, 0.0, 0.8]\n")  # no lookat
+    with pytest.raises(draccus.utils.ParsingError) as info:
+        parse_env("type=so101sim_pick_cube", f"camera_file={bad}")
+    assert "lookat" in str(info.value.__cause__)

@@ -33,7 +33,15 @@ ROBOT_TYPE = "so101_sim"
 CAMERA_TYPE = "so101_sim"
 MOTION_TELEOP_TYPE = "so101_sim_motion"
 EXPERT_TELEOP_TYPE = "so101_sim_expert"
-EXPERT_TASKS = {"pick_cube": 8.0, "cube_to_bowl": 12.0, "lift_cylinder": 8.0, "lift_sphere": 8.0}
+EXPERT_TASKS = {
+    "pick_cube": 8.0,
+    "cube_to_bowl": 12.0,
+    "lift_cylinder": 8.0,
+    "lift_sphere": 8.0,
+    "lift_mesh": 8.0,
+    "push": 10.0,
+    "stack": 12.0,
+}
 """The scripted experts' tasks (each also a ``--robot.scene`` preset) and their time limits
 (seconds, those of ``so101sim/PickCube-v0`` and ``so101sim/CubeToBowl-v0``)."""
 MAX_EPISODE_S = 3600.0

@@ -40,7 +40,15 @@ from pathlib import Path
 from typing import Any
 
 from so101sim.errors import OutputPathError, SettingError
-from so101sim.scenes import PRESET_CAMERAS, SCENE_PRESETS, randomization
+from so101sim.scenes import (
+    PRESET_CAMERAS,
+    SCENE_PRESETS,
+    CameraLike,
+    CameraSpec,
+    camera_name,
+    randomization,
+    resolve_cameras,
+)
 from so101sim.units import JOINT_NAMES
 from so101sim.validation import check_choice, check_count, check_range
 
@@ -54,6 +62,9 @@ TASK_TEXT = {
     "cube_to_bowl": "Put the red cube in the bowl.",
     "lift_cylinder": "Pick up the orange cylinder.",
     "lift_sphere": "Pick up the green ball.",
+    "lift_mesh": "Pick up the purple nut.",
+    "push": "Push the red cube onto the green mark.",
+    "stack": "Stack the red cube on the blue block.",
 }
 """The dataset's task text per task (the environments' ``task_description``)."""
 MAX_EPISODES = 100_000
@@ -75,13 +86,18 @@ class DatasetSettings:
     repo_id: str = "local/so101sim"
     seed: int = 0
     fps: int = 30
-    cameras: tuple[str, ...] = ()
+    cameras: tuple[CameraLike, ...] = ()
+    """Preset names (``front``, ``wrist``) and cameras of your own (``CameraSpec``, e.g. from
+    ``so101sim.scenes.load_cameras``); images are stored as ``observation.images.<name>``."""
     image_size: tuple[int, int] = (96, 96)
     environment_state: bool = False
     randomize: str = "none"
     after_success_s: float = 1.0
     workers: int = 1
     use_ray: bool = False
+    ray_address: str = "local"
+    """With ``use_ray``: "local" (start a Ray cluster here with ``workers`` CPUs), "auto" (one
+    running on this machine) or a cluster's ``host:port`` / ``ray://host:port``."""
     video: bool = True
 
     def checked(self) -> DatasetSettings:
@@ -96,14 +112,21 @@ class DatasetSettings:
         check_count(self.fps, "fps", minimum=1, maximum=500, unit=" Hz")
         check_count(self.workers, "workers", minimum=1, maximum=MAX_WORKERS)
         for cam in self.cameras:
-            check_choice(cam, "camera", PRESET_CAMERAS)
-        if len(set(self.cameras)) != len(self.cameras):
-            raise SettingError(f"cameras {list(self.cameras)} repeat a name; expected each once")
+            if not isinstance(cam, CameraSpec):
+                check_choice(cam, "camera", PRESET_CAMERAS)
+        names = [camera_name(c) for c in self.cameras]
+        if len(set(names)) != len(names):
+            raise SettingError(f"cameras {names} repeat a name; expected each once")
+        resolve_cameras(self.cameras)  # each camera of your own valid
         h, w = self.image_size
         check_count(h, "image height", minimum=2, maximum=MAX_IMAGE_SIDE, even=True)
         check_count(w, "image width", minimum=2, maximum=MAX_IMAGE_SIDE, even=True)
         check_range(self.after_success_s, "after_success_s", low=0.0, high=60.0, unit=" s")
         _randomize_options(self.randomize)  # raises on an unknown preset
+        if not isinstance(self.ray_address, str) or not self.ray_address.strip():
+            raise SettingError(
+                f"ray_address = {self.ray_address!r}; expected local, auto or host:port"
+            )
         if not self.cameras and not self.environment_state:
             log.info("a dataset with neither cameras nor environment_state: ACT refuses it")
         return self
@@ -138,7 +161,7 @@ def dataset_features(settings: DatasetSettings) -> dict[str, dict[str, Any]]:
     }
     h, w = settings.image_size
     for cam in settings.cameras:
-        features[f"observation.images.{cam}"] = {
+        features[f"observation.images.{camera_name(cam)}"] = {
             "dtype": "video" if settings.video else "image",
             "shape": (h, w, 3),
             "names": ["height", "width", "channels"],

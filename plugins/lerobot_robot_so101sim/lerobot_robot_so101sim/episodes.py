@@ -22,8 +22,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from so101sim.errors import SettingError
-
 if TYPE_CHECKING:
     from .dataset import DatasetSettings
 
@@ -121,24 +119,21 @@ def episodes(settings: DatasetSettings, seeds: list[int]) -> Iterator[Episode]:
 
     kwargs = _frames_kwargs(settings)
     if settings.use_ray:
+        from so101sim.envs import expert_frames_on_ray
+
+        frames = expert_frames_on_ray(
+            settings.task, seeds, address=settings.ray_address, workers=settings.workers, **kwargs
+        )
         try:
-            import ray
-        except ImportError as exc:
-            raise SettingError(
-                "--ray needs Ray in this Python; expected `pip install ray` (or leave --ray out)"
-            ) from exc
-        started = not ray.is_initialized()
-        if started:
-            ray.init(num_cpus=settings.workers, include_dashboard=False, log_to_driver=False)
-        try:
-            remote = ray.remote(num_cpus=1)(expert_frames)
-            refs = [remote.remote(settings.task, s, **kwargs) for s in seeds]
-            for ref in refs:
+            while True:
                 start = time.perf_counter()
-                yield _episode(settings, ray.get(ref), time.perf_counter() - start)
+                try:
+                    result = next(frames)
+                except StopIteration:
+                    break
+                yield _episode(settings, result, time.perf_counter() - start)
         finally:
-            if started:
-                ray.shutdown()
+            frames.close()  # shuts down a cluster it started
         return
     if settings.workers == 1:
         for s in seeds:

@@ -6,11 +6,14 @@ so they are set here, before any test module imports it. Subprocesses (the CLIs)
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
 _HOME = Path(tempfile.mkdtemp(prefix="so101sim-lerobot-home-"))
+atexit.register(shutil.rmtree, _HOME, ignore_errors=True)  # the session's LeRobot home
 os.environ["HF_HUB_OFFLINE"] = "1"
 os.environ["HF_DATASETS_OFFLINE"] = "1"
 os.environ["HF_LEROBOT_HOME"] = str(_HOME)

@@ -113,23 +113,45 @@ def test_so101sim_dataset_trains_with_lerobot_train_and_evaluates(tmp_path):
             assert iio.improps(ep["video"], plugin="pyav").shape[0] == ep["steps"]
 
 
+def test_a_dataset_over_a_local_ray_with_two_workers_equals_the_local_one(tmp_path):
+    """``so101sim dataset --ray``: the episodes as Ray tasks give the dataset the worker
+    processes give, seed for seed."""
+    pytest.importorskip("ray")
+    settings = dict(task="pick_cube", episodes=2, seed=21, environment_state=True)
+    local = generate_dataset(DatasetSettings(root=str(tmp_path / "local"), **settings))
+    remote = generate_dataset(
+        DatasetSettings(root=str(tmp_path / "ray"), use_ray=True, workers=2, **settings)
+    )
+    assert local.seeds == remote.seeds == (21, 22) and local.frames == remote.frames
+    a, b = columns(tmp_path / "local"), columns(tmp_path / "ray")
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+    with pytest.raises(SettingError, match="ray_address"):
+        DatasetSettings(root="x", task="pick_cube", episodes=1, ray_address="").checked()
+
+
 @pytest.mark.cli
-def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take(tmp_path):
-    """The image path: 3 episodes with front and wrist cameras (the real follower's image
-    keys and state names), 3 steps of a tiny image ACT with `lerobot-train`, 1 episode of
-    `so101sim eval` (the failure video: the front view beside the policy's two cameras), and
+def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take(tmp_path, capsys):
+    """The image path: 3 episodes with a camera of the user's own rig (``top``, from a camera
+    file) and the wrist preset (the real follower's image keys and state names), 3 steps of a
+    tiny image ACT with `lerobot-train`, 1 episode of `so101sim eval` given the same camera
+    file (the failure video: the front view beside the policy's two cameras), and
     `so101sim policy-check` on the trained policy against a real follower's configs."""
     root = tmp_path / "ds"
+    rig = tmp_path / "rig.toml"
+    rig.write_text("[top]\npos = [0.2, 0.0, 0.8]\nlookat = [0.2, 0.0, 0.0]\nfovy = 60\n")
     run(
         [tool("so101sim"), "dataset", "pick_cube", "--episodes", "3", "-o", str(root),
-         "--cameras", "front,wrist", "--image-size", "64x48", "--workers", "2",
+         "--cameras", f"{rig},wrist", "--image-size", "64x48", "--workers", "2",
          "--no-progress"],
         tmp_path / "dataset.log",
     )  # fmt: skip
+    meta = json.loads((root / "meta" / "so101sim.json").read_text())
+    assert meta["settings"]["cameras"][0]["pos"] == [0.2, 0.0, 0.8]  # the rig, kept with it
     ds = LeRobotDataset(REPO_ID, root=root)
     assert ds.features["observation.state"]["names"] == KEYS
     assert ds.features["action"]["names"] == KEYS
-    for cam in ("front", "wrist"):
+    for cam in ("top", "wrist"):
         assert ds.features[f"observation.images.{cam}"]["shape"] == (48, 64, 3)
     assert "observation.environment_state" not in ds.features
     frame = ds[0]
@@ -149,12 +171,17 @@ def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take
     policy = train / "checkpoints" / "last" / "pretrained_model"
     config = json.loads((policy / "config.json").read_text())
     assert sorted(config["input_features"]) == [
-        "observation.images.front", "observation.images.wrist", "observation.state"
+        "observation.images.top", "observation.images.wrist", "observation.state"
     ]  # fmt: skip
+    from so101sim.cli.main import main
+
+    capsys.readouterr()
+    assert main(["eval", str(policy), "--episodes", "1", "-o", str(tmp_path / "no")]) == 2
+    assert "camera file" in capsys.readouterr().err  # where is top? a camera file says
     evaluation = tmp_path / "eval"
     run(
         [tool("so101sim"), "eval", str(policy), "--episodes", "1", "--workers", "1",
-         "--episode-length", "8", "-o", str(evaluation)],
+         "--episode-length", "8", "--cameras", str(rig), "-o", str(evaluation)],
         tmp_path / "eval.log",
     )  # fmt: skip
     report = json.loads((evaluation / "eval.json").read_text())
@@ -166,7 +193,6 @@ def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take
             assert ep["video"], "a failed episode has its video"
             props = iio.improps(ep["video"], plugin="pyav")
             assert props.shape[0] == ep["steps"] and props.shape[1:3] == (480, 640 * 3)
-    from so101sim.cli.main import main
 
     def robot(name: str, cameras: dict) -> str:
         path = tmp_path / name
@@ -175,7 +201,7 @@ def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take
         return str(path)
 
     cam = {"type": "opencv", "index_or_path": 0, "width": 64, "height": 48, "fps": 30}
-    good = robot("good.json", {"front": cam, "wrist": {**cam, "index_or_path": 1}})
+    good = robot("good.json", {"top": cam, "wrist": {**cam, "index_or_path": 1}})
     assert main(["policy-check", str(policy), "--robot-config", good]) == 0
-    bad = robot("bad.json", {"front": {**cam, "width": 640, "height": 480}})
+    bad = robot("bad.json", {"top": {**cam, "width": 640, "height": 480}})
     assert main(["policy-check", str(policy), "--robot-config", bad]) == 1

@@ -51,7 +51,7 @@ def test_the_expert_teleoperator_is_registered_and_checks_its_fields():
     assert SO101SimExpertConfig(task="cube_to_bowl").episode_time_s == 12.0
     assert SO101SimExpertConfig(episode_time_s=5, reset_time_s=1, fps=10).take_calls == 60
     with pytest.raises(sim_errors.RobotConfigError, match="pick_cube, cube_to_bowl"):
-        SO101SimExpertConfig(task="stack")
+        SO101SimExpertConfig(task="juggle")
     with pytest.raises(sim_errors.RobotConfigError, match="seed"):
         SO101SimExpertConfig(seed=-1)
     with pytest.raises(sim_errors.RobotConfigError, match="episode_time_s"):

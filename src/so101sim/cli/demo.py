@@ -31,7 +31,9 @@ def add_demo_command(sub: SubParsers, *, arm: argparse.ArgumentParser) -> None:
         ),
     )
     p.add_argument(
-        "task", help="the task: pick_cube, cube_to_bowl, reach, lift_cylinder or lift_sphere"
+        "task",
+        help="the task: pick_cube, cube_to_bowl, reach, lift_cylinder, lift_sphere, lift_mesh, "
+        "push, stack or look_at",
     )
     p.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
     p.add_argument(
@@ -64,6 +66,17 @@ def format_figures(figures: dict[str, float]) -> str:
         where = "in the bowl" if figures.get("in_bowl") else "not in the bowl"
         parts.append(
             f"cube {figures['cube_to_bowl_m'] * 1000:.1f} mm from the bowl's centre ({where})"
+        )
+    if "cube_to_mark_m" in figures:
+        parts.append(f"cube {figures['cube_to_mark_m'] * 1000:.1f} mm from the mark's centre")
+    if "cube_to_block_m" in figures:
+        where = "on the block" if figures.get("on_block") else "not on the block"
+        parts.append(
+            f"cube {figures['cube_to_block_m'] * 1000:.1f} mm from the block's centre ({where})"
+        )
+    if "image_offset" in figures:
+        parts.append(
+            f"cube seen {figures['image_offset']:.3f} half-heights from the wrist image's centre"
         )
     if "goal_distance_m" in figures:
         parts.append(f"tip {figures['goal_distance_m'] * 1000:.1f} mm from the target")

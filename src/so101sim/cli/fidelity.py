@@ -11,6 +11,7 @@ import json
 import sys
 
 from .output import add_arm_option, say
+from .studio import add_web_options
 
 SubParsers = argparse._SubParsersAction
 
@@ -30,9 +31,15 @@ def add_parsers(sub: SubParsers) -> None:
     )
     p.add_argument("log", help="a LeRobot dataset folder or a so101sim CSV log")
     _common(p)
-    p.add_argument("--plot", metavar="PNG", help="real, sim and command per joint (1st episode)")
+    p.add_argument(
+        "--plot",
+        metavar="PNG",
+        help="real, sim and command per joint, the compared episodes one after another (at "
+        "most 10), the worst windows shaded",
+    )
     p.add_argument("--force", action="store_true", help="overwrite an existing --plot file")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    add_web_options(p, linger=False)
     p.set_defaults(func=cmd_compare)
 
     p = sub.add_parser(
@@ -102,20 +109,23 @@ def _warn(text: str) -> None:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from ..fidelity.compare import compare, plot_overlay
+    from ..fidelity.compare import compare
     from ..fidelity.logs import parse_episodes
+    from ..fidelity.plot import plot_overlay
     from ..recording.paths import check_output_path
 
     episodes = parse_episodes(args.episodes) if args.episodes is not None else None
     if args.plot is not None:
         check_output_path(args.plot, force=args.force, what="plot", suffixes=(".png",))
+    if args.web:
+        _web_first(args)
     result = compare(
         args.log,
         arm=args.arm,
         episodes=episodes,
         calibration=args.calibration,
         model=args.model,
-        keep_traces=args.plot is not None,
+        keep_traces=args.plot is not None or args.web,
         units=args.units,
         robot_id=args.robot_id,
     )
@@ -126,6 +136,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
     if args.json:
         say(json.dumps(result.to_json()))
         return 0
+    _print_compare(result, args)
+    return _serve_compare(result, args) if args.web else 0
+
+
+def _print_compare(result, args: argparse.Namespace) -> None:
     say(
         f"{result.frames} frames at {result.fps:g} fps, episodes {_eps(result.episodes)}, "
         f"arm profile {result.profile}"
@@ -156,6 +171,44 @@ def cmd_compare(args: argparse.Namespace) -> int:
         )
     if args.plot is not None:
         say(f"wrote {args.plot} (the worst windows shaded)")
+
+
+def _web_first(args: argparse.Namespace) -> None:
+    """``compare --web``: its settings and the port checked before anything is replayed."""
+    from ..errors import SettingError
+    from ..studio.net import check_host
+    from ..studio.server import check_port, ensure_free, require_viser
+
+    if args.json:
+        raise SettingError("--json and --web: choose one (--json prints only the JSON object)")
+    require_viser()
+    ensure_free(check_host(args.host), check_port(args.port))
+
+
+def _serve_compare(result, args: argparse.Namespace) -> int:
+    """``compare --web``: the replay in the studio (the sim's arm, the real arm's ghost) until
+    Ctrl-C (or SIGTERM, SIGHUP); the server stopped on the way out."""
+    from ..model import load_model
+    from ..studio.compare import CompareStudio, Window
+    from .studio import _UntilSignal, announce
+
+    model = load_model(args.model, arm=args.arm)
+    windows = [
+        Window(w.episode, w.t0, w.t1, f"episode {w.episode}, {w.t0:.1f}-{w.t1:.1f} s: "
+               f"{w.joint} ({w.mae:.1f} deg body mae)", w.joint)
+        for w in result.worst
+    ]  # fmt: skip
+    with _UntilSignal() as until:
+        studio = CompareStudio(model, result.traces, windows=windows, host=args.host,
+                               port=args.port)  # fmt: skip
+        until.studio = studio
+        try:
+            announce(studio.url, "the replay (the sim's arm; the real arm a ghost)", studio)
+            while not until:
+                until.sleep(3600.0)
+        finally:
+            studio.close()
+    say("stopped")
     return 0
 
 

@@ -52,8 +52,26 @@ def _size(text: str) -> tuple[int, int]:
     return h, w
 
 
-def _cameras(text: str) -> tuple[str, ...]:
-    return tuple(c for c in text.split(",") if c)
+def _cameras(text: str) -> tuple[Any, ...]:
+    """``--cameras``: presets and camera files, as :func:`so101sim.scenes.parse_cameras`."""
+    from ..errors import So101SimError
+    from ..scenes import parse_cameras  # imported here: it imports MuJoCo (start-up time)
+
+    try:
+        return parse_cameras(text)
+    except So101SimError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _camera_file(text: str) -> str:
+    from ..errors import So101SimError
+    from ..scenes import load_cameras  # imported here: it imports MuJoCo (start-up time)
+
+    try:
+        load_cameras(text)
+    except So101SimError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
 
 
 RANDOMIZE_HELP = (
@@ -69,21 +87,29 @@ def add_learning_commands(sub: SubParsers) -> None:
         help="write a LeRobotDataset of a task's scripted expert (needs the LeRobot plugin)",
         description=(
             "Simulates N episodes of TASK's scripted expert (pick_cube, cube_to_bowl, "
-            "lift_cylinder, lift_sphere), each from "
+            "lift_cylinder, lift_sphere, lift_mesh, push, stack), each from "
             "its own seed, faster than real time on worker processes, and writes them with "
             "LeRobot's dataset writer: the features lerobot-record writes on "
             "--robot.type=so101_sim. Failed takes are left out and counted (replaced by the "
             "next seeds). Needs lerobot_robot_so101sim installed."
         ),
     )
-    p.add_argument("task", help="pick_cube, cube_to_bowl, lift_cylinder or lift_sphere")
+    p.add_argument(
+        "task",
+        help="pick_cube, cube_to_bowl, lift_cylinder, lift_sphere, lift_mesh, push or stack",
+    )
     p.add_argument("--episodes", type=int, required=True, help="episodes to write")
     p.add_argument("-o", "--output", required=True, help="the dataset's folder (must not exist)")
     p.add_argument("--repo-id", default="local/so101sim", help="the dataset's repo_id")
     p.add_argument("--seed", type=int, default=0, help="episode k is drawn from seed + k")
     p.add_argument("--fps", type=int, default=30, help="frames per simulated second (30)")
     p.add_argument(
-        "--cameras", type=_cameras, default=(), help="comma-separated: front,wrist (none)"
+        "--cameras",
+        type=_cameras,
+        default=(),
+        help="comma-separated presets (front, wrist) and TOML files of cameras of your own "
+        "(their pose and field of view: docs/cameras.md), e.g. front,wrist or wrist,my_rig.toml; "
+        "none by default",
     )
     p.add_argument(
         "--image-size",
@@ -108,7 +134,15 @@ def add_learning_commands(sub: SubParsers) -> None:
         "--after-success", type=float, default=1.0, help="seconds kept after success (1)"
     )
     p.add_argument("--workers", type=int, help="worker processes (default: every core)")
-    p.add_argument("--ray", action="store_true", help="run the episodes as Ray tasks")
+    p.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        default=None,
+        metavar="ADDRESS",
+        help="run the episodes as Ray tasks: --ray (a Ray started here with --workers CPUs), "
+        "--ray auto (a cluster started with `ray start --head`) or --ray host:port",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_dataset)
 
@@ -136,6 +170,14 @@ def add_learning_commands(sub: SubParsers) -> None:
     p.add_argument("-o", "--output", help="folder for eval.json and the failures' videos")
     p.add_argument("--max-videos", type=int, default=10, help="failure videos at most (10)")
     p.add_argument("--device", default="cpu", help="torch device (cpu)")
+    p.add_argument(
+        "--cameras",
+        type=_camera_file,
+        default=None,
+        metavar="FILE.toml",
+        help="where the policy's cameras are when they are not the presets (the camera file "
+        "its dataset was recorded with: docs/cameras.md)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_eval)
 
@@ -182,7 +224,8 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         randomize=args.randomize,
         after_success_s=args.after_success,
         workers=_workers(args.workers),
-        use_ray=args.ray,
+        use_ray=args.ray is not None,
+        ray_address=args.ray or "local",
         video=not args.no_video,
     )
     bar = tqdm(total=args.episodes, unit="episode", disable=args.no_progress, file=sys.stderr)
@@ -224,6 +267,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         output=args.output,
         max_videos=args.max_videos,
         device=args.device,
+        camera_file=args.cameras,
     ).checked()  # every setting before the bar: an error is its only line
     bar = tqdm(total=args.episodes, unit="episode", disable=args.no_progress, file=sys.stderr)
     try:

@@ -24,6 +24,7 @@ when the task succeeds (``terminated``, unless ``terminate_on_success`` is off) 
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Literal, get_args
 
@@ -31,7 +32,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
-from ..errors import ClosedError, SettingError, ViewerError
+from ..errors import ClosedError, ViewerError
 from ..exitgate import gated
 from ..model.arm import ArmLike, load_profile
 from ..recording import FREE_CAMERA, QUALITY_CHOICES, FrameRenderer, VideoSettings
@@ -39,6 +40,8 @@ from ..recording.settings import check_quality
 from ..robot.config import GRIPPER_TORQUE_FRACTION
 from ..scenes import (
     PRESET_CAMERAS,
+    CameraLike,
+    CameraSpec,
     Randomization,
     SceneRandomizer,
     VisualJitter,
@@ -48,6 +51,7 @@ from ..scenes import (
     place_objects,
     preset_scene,
     randomization,
+    resolve_cameras,
     sample_placements,
     scene_additions,
 )
@@ -95,7 +99,7 @@ class So101TaskEnv(Observations, SceneState, gym.Env):
         *,
         control: ControlMode = "joint",
         reward: RewardMode = "dense",
-        cameras: tuple[str, ...] | list[str] = (),
+        cameras: Sequence[CameraLike] = (),
         image_size: tuple[int, int] = (224, 224),
         object_state: bool = True,
         joint_velocities: bool = True,
@@ -119,8 +123,12 @@ class So101TaskEnv(Observations, SceneState, gym.Env):
             check_choice(render_mode, "render mode", RENDER_MODES)
         self.render_mode = render_mode
         self.reward_mode = check_choice(reward, "reward mode", REWARD_MODES)
-        self.cameras = tuple(cameras)
         self.image_size = check_size(image_size, "image_size")
+        for cam in cameras:  # a name must be a preset's (a camera of your own: a CameraSpec)
+            if not isinstance(cam, CameraSpec):
+                check_choice(cam, "camera", PRESET_CAMERAS)
+        self._camera_list = resolve_cameras(cameras, self.image_size)
+        self.cameras = tuple(c.name for c in self._camera_list)
         self.render_size = check_size(render_size, "render_size")
         self.render_camera = check_choice(
             render_camera, "render camera", [*PRESET_CAMERAS, FREE_CAMERA]
@@ -179,14 +187,8 @@ class So101TaskEnv(Observations, SceneState, gym.Env):
 
     # -- set-up
     def _camera_specs(self) -> list:
-        h, w = self.image_size
-        names = list(dict.fromkeys(self.cameras))
-        if len(names) != len(self.cameras):
-            raise SettingError(f"cameras {list(self.cameras)} name one twice; expected each once")
-        for name in names:
-            check_choice(name, "camera", PRESET_CAMERAS)
-        specs = [camera(n, width=w, height=h) for n in names]
-        if self.render_camera in PRESET_CAMERAS and self.render_camera not in names:
+        specs = list(self._camera_list)
+        if self.render_camera in PRESET_CAMERAS and self.render_camera not in self.cameras:
             specs.append(camera(self.render_camera))
         return specs
 

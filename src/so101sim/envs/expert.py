@@ -75,6 +75,8 @@ class ScriptedExpert:
     """The phases common to the tasks: reach, descend, close, lift (then hold)."""
 
     phases: tuple[str, ...] = ("reach", "descend", "close", "settle", "lift")
+    sag_phases: frozenset[str] = SAG_PHASES
+    """The phases commanded through the servos' sag."""
 
     def __init__(self, env: Any) -> None:
         inner = getattr(env, "unwrapped", env)
@@ -117,7 +119,7 @@ class ScriptedExpert:
             else (self._last if self._last is not None else commanded)
         )
         self._last = target  # where the arm should be; the plan goes on from there
-        if self.phase in SAG_PHASES:  # holding the cube up: aim where the sagging arm ends
+        if self.phase in self.sag_phases:  # holding the cube up: aim where the sagging arm ends
             target = self._through_sag(target)
         return self.env.actions.action_for(target, commanded)
 

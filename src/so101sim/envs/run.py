@@ -6,6 +6,7 @@ success rate (:func:`evaluate_expert`).
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -15,6 +16,7 @@ import numpy as np
 
 from ..errors import SettingError
 from ..recording import VideoRecorder, VideoSettings
+from ..scenes import CameraLike, camera_name
 from ..validation import check_count, check_range
 from .expert import expert_for
 
@@ -24,6 +26,10 @@ TASKS = {
     "reach": "so101sim/Reach-v0",
     "lift_cylinder": "so101sim/LiftCylinder-v0",
     "lift_sphere": "so101sim/LiftSphere-v0",
+    "lift_mesh": "so101sim/LiftMesh-v0",
+    "push": "so101sim/Push-v0",
+    "stack": "so101sim/Stack-v0",
+    "look_at": "so101sim/LookAt-v0",
 }
 """Task names (as the scene presets name them) and their Gymnasium ids."""
 
@@ -217,7 +223,7 @@ def expert_frames(
     seed: int,
     *,
     fps: int = 30,
-    cameras: tuple[str, ...] | list[str] = (),
+    cameras: Sequence[CameraLike] = (),
     image_size: tuple[int, int] = (96, 96),
     randomize: Any = None,
     after_success_s: float = 1.0,
@@ -249,7 +255,7 @@ def expert_frames(
         expert.reset()
         after = round(check_range(after_success_s, "after_success_s", low=0.0, high=60.0) * fps)
         states, actions, env_states = [], [], []
-        images: dict[str, list[np.ndarray]] = {c: [] for c in cameras}
+        images: dict[str, list[np.ndarray]] = {camera_name(c): [] for c in cameras}
         first: int | None = None
         done = False
         while not done:
@@ -257,8 +263,8 @@ def expert_frames(
             states.append(np.asarray(obs["agent_pos"], dtype=np.float32))
             actions.append(action)
             env_states.append(np.asarray(obs["environment_state"], dtype=np.float32))
-            for cam in cameras:
-                images[cam].append(obs["pixels"][cam])
+            for cam, frames in images.items():
+                frames.append(obs["pixels"][cam])
             obs, _, terminated, truncated, info = env.step(action)
             if info["is_success"] and first is None:
                 first = len(actions)

@@ -126,6 +126,16 @@ class LiftSphereEnv(PickCubeEnv):
     target = "object"
 
 
+class LiftMeshEnv(PickCubeEnv):
+    """Lift the 2.5 cm octagonal mesh 3 cm (a convex mesh made at load time; the pick test
+    on another shape)."""
+
+    scene_name = "lift_mesh"
+    task = "lift_mesh"
+    task_description = "Pick up the purple nut."
+    target = "object"
+
+
 class PickCubeSimTask(PickCubeTask, SimTask):
     """PickCube on a simulation stepped elsewhere (:func:`sim_task`)."""
 
@@ -148,11 +158,19 @@ class LiftSphereSimTask(PickCubeSimTask):
     target = "object"
 
 
+class LiftMeshSimTask(PickCubeSimTask):
+    """Lift the mesh on a simulation stepped elsewhere (:func:`sim_task`)."""
+
+    scene_name = task = "lift_mesh"
+    target = "object"
+
+
 SIM_TASKS: dict[str, type[SimTask]] = {
     "pick_cube": PickCubeSimTask,
     "cube_to_bowl": CubeToBowlSimTask,
     "lift_cylinder": LiftCylinderSimTask,
     "lift_sphere": LiftSphereSimTask,
+    "lift_mesh": LiftMeshSimTask,
 }
 """The tasks by name (each is also its scene preset's name)."""
 

@@ -1,196 +1,20 @@
-"""Many worlds at once: :func:`make_vec` gives a Gymnasium ``VectorEnv`` of N copies of a task
-whose physics is stepped together, in C, on every core (:class:`so101sim.sim.batched.WorldStepper`).
-
-Each world is a whole :class:`~so101sim.envs.So101TaskEnv` (its own compiled scene, arm
-profile and randomisation, seeded on its own), so the observations, actions, rewards and
-``info`` are those of N single environments, bit for bit; only the physics of a step is taken
-for all the worlds in one call, and Python runs once per world per environment step (never
-per physics step).
-
-Gymnasium 1.x conventions: ``metadata["autoreset_mode"]`` is ``AutoresetMode.SAME_STEP``: a
-world whose episode ended is reset within the same ``step()``; the observation returned is the
-new episode's first, and ``info["final_obs"]`` / ``info["final_info"]`` (masked by
-``info["_final_obs"]`` / ``info["_final_info"]``) hold the last ones of the episode that ended.
-Every key of a world's ``info`` is stacked over the worlds with its ``_key`` mask, as
-``SyncVectorEnv`` does, so ``gymnasium.wrappers.vector.RecordEpisodeStatistics`` counts the
-episodes right. ``reset(seed=s)`` seeds world i with ``s + i`` (a list: one seed per world).
-"""
+"""The vector environments' one entry, :func:`make_vec`: the backend chosen by name (the N
+worlds in this process, :mod:`.worlds`; on a GPU, :mod:`.warp`; over Ray actors,
+:mod:`.rayvec`)."""
 
 from __future__ import annotations
 
-from copy import deepcopy
-from typing import Any, ClassVar, Literal, get_args
+from typing import Any, Literal, get_args
 
-import numpy as np
-from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
+from gymnasium.vector import VectorEnv
 
-from ..errors import ClosedError, SettingError
-from ..sim.batched import WorldStepper
-from ..validation import check_choice, check_count
-from .base import So101TaskEnv
-from .run import make
+from ..validation import check_choice
+from .worlds import MAX_WORLDS, So101VectorEnv
 
-Backend = Literal["cpu", "warp"]
-"""Where an environment's worlds step: MuJoCo on the CPU's cores, or MuJoCo Warp on a GPU."""
+Backend = Literal["cpu", "warp", "ray"]
+"""Where an environment's worlds step: MuJoCo on the CPU's cores, MuJoCo Warp on a GPU, or
+Ray actors."""
 BACKENDS: tuple[str, ...] = get_args(Backend)
-MAX_WORLDS = 65_536
-
-
-class So101VectorEnv(VectorEnv):
-    """N worlds of one task stepped together (see the module's text); made by :func:`make_vec`."""
-
-    metadata: ClassVar[dict[str, Any]] = {
-        "autoreset_mode": AutoresetMode.SAME_STEP,
-        "render_modes": [],
-    }
-
-    def __init__(
-        self, task: str, num_envs: int, *, nthread: int | None = None, **env_kwargs: Any
-    ) -> None:
-        self.num_envs = check_count(num_envs, "num_envs", minimum=1, maximum=MAX_WORLDS)
-        if env_kwargs.get("render_mode") == "human":
-            raise SettingError(
-                "render_mode='human' in a vector environment; expected None or 'rgb_array'"
-            )
-        first: So101TaskEnv = make(task, **env_kwargs).unwrapped
-        # one compiled model for every world unless a draw changes it per world (the physics'
-        # or the look's randomisation): 64 copies of it do not fit in the caches, one does
-        shared = not first.randomize.active and not first.jitter.active
-        more = {**env_kwargs, "shared_model": first.model} if shared else env_kwargs
-        self.envs = [first, *(make(task, **more).unwrapped for _ in range(self.num_envs - 1))]
-        self.shared_model = shared
-        self.task = task
-        self.render_mode = first.render_mode
-        self.metadata = {
-            **self.metadata,
-            "render_modes": list(first.metadata["render_modes"]),
-            "render_fps": first.metadata["render_fps"],
-        }
-        self.spec = first.spec
-        self.single_observation_space = first.observation_space
-        self.single_action_space = first.action_space
-        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self._stepper = WorldStepper(
-            [e.model for e in self.envs], [e.sim.data for e in self.envs], nthread
-        )
-        self._obs = create_empty_array(self.single_observation_space, self.num_envs)
-        self._closed = False
-
-    @property
-    def nthread(self) -> int:
-        """The worker threads that step the worlds."""
-        return self._stepper.nthread
-
-    def _check_open(self, what: str) -> None:
-        if self._closed:
-            raise ClosedError(
-                f"{what}() on a closed vector environment; expected an open one (make a new "
-                "one with make_vec after close())"
-            )
-
-    def _seeds(self, seed: int | list[int | None] | None) -> list[int | None]:
-        if seed is None:
-            return [None] * self.num_envs
-        if isinstance(seed, int | np.integer):
-            return [int(seed) + i for i in range(self.num_envs)]
-        seeds = list(seed)
-        if len(seeds) != self.num_envs:
-            raise SettingError(
-                f"{len(seeds)} seeds for {self.num_envs} worlds; expected one seed per world, "
-                "an int (world i gets seed + i) or None"
-            )
-        return seeds
-
-    def reset(
-        self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[Any, dict[str, Any]]:
-        """Reset every world (``seed``: see the module's text; ``options`` go to each world's
-        ``reset``)."""
-        self._check_open("reset")
-        infos: dict[str, Any] = {}
-        observations = []
-        for i, (env, s) in enumerate(zip(self.envs, self._seeds(seed), strict=True)):
-            obs, info = env.reset(seed=s, options=options)
-            observations.append(obs)
-            infos = self._add_info(infos, info, i)
-        self._obs = concatenate(self.single_observation_space, observations, self._obs)
-        return deepcopy(self._obs), infos
-
-    def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        """One control period in every world, the physics of all of them stepped together.
-
-        Raises:
-            SettingError: an action is not valid (the message names the world).
-            SimulationDivergedError: a world's physics became unstable.
-            ClosedError: the environment was closed.
-        """
-        self._check_open("step")
-        actions = np.asarray(actions)
-        if actions.shape[:1] != (self.num_envs,):
-            raise SettingError(
-                f"actions of shape {actions.shape}; expected ({self.num_envs}, "
-                f"{', '.join(map(str, self.single_action_space.shape))}): one row per world"
-            )
-        steps = np.empty(self.num_envs, dtype=np.int64)
-        for i, env in enumerate(self.envs):
-            try:
-                targets = env.actions.targets(actions[i], env.sim.commanded_array())
-            except SettingError as exc:
-                raise SettingError(f"world {i}: {exc}") from None
-            env.sim.command_array(targets, check=False)
-            steps[i] = env._physics_steps()
-        self._stepper.advance(steps)
-        rewards = np.zeros(self.num_envs)
-        terminated = np.zeros(self.num_envs, dtype=bool)
-        truncated = np.zeros(self.num_envs, dtype=bool)
-        infos: dict[str, Any] = {}
-        observations, step_infos = [], []
-        for i, env in enumerate(self.envs):
-            obs, rewards[i], terminated[i], truncated[i], info = env._finish_step()
-            if terminated[i] or truncated[i]:
-                infos = self._add_info(infos, {"final_obs": obs, "final_info": info}, i)
-                obs, info = env.reset()
-            observations.append(obs)
-            step_infos.append(info)
-        infos = self._stack_infos(infos, step_infos)
-        self._obs = concatenate(self.single_observation_space, observations, self._obs)
-        return deepcopy(self._obs), rewards, terminated, truncated, infos
-
-    def _stack_infos(self, infos: dict[str, Any], each: list[dict[str, Any]]) -> dict[str, Any]:
-        """Every world's ``info`` stacked as ``_add_info`` stacks it, the keys every world has
-        with plain numbers at once (one array per key, not one call per world)."""
-        every = np.ones(self.num_envs, dtype=bool)
-        keys = set(each[0])
-        if all(set(info) == keys for info in each):
-            plain = [
-                k for k in each[0] if type(each[0][k]) in (bool, int, float) and k not in infos
-            ]
-            for k in plain:
-                infos[k] = np.array([info[k] for info in each], dtype=type(each[0][k]))
-                infos[f"_{k}"] = every.copy()
-            rest = [{k: v for k, v in info.items() if k not in plain} for info in each]
-        else:
-            rest = each
-        for i, info in enumerate(rest):
-            if info:
-                infos = self._add_info(infos, info, i)
-        return infos
-
-    def render(self) -> tuple[np.ndarray, ...] | None:
-        """Each world's frame (``render_mode="rgb_array"``), else None."""
-        self._check_open("render")
-        if self.render_mode != "rgb_array":
-            return None
-        return tuple(env.render() for env in self.envs)
-
-    def close_extras(self, **kwargs: Any) -> None:
-        """Stop the stepping threads and close every world."""
-        self._closed = True
-        self._stepper.close()
-        for env in self.envs:
-            env.close()
 
 
 def make_vec(
@@ -206,14 +30,20 @@ def make_vec(
     ``gym.make``).
 
     ``backend``: ``"cpu"`` (MuJoCo on every core: ``nthread`` threads, default the cores this
-    process may use) or ``"warp"`` (MuJoCo Warp on a CUDA GPU: the optional ``warp`` extra;
-    see :mod:`so101sim.envs.warp`).
+    process may use), ``"warp"`` (MuJoCo Warp on a CUDA GPU: the optional ``warp`` extra;
+    see :mod:`so101sim.envs.warp`) or ``"ray"`` (the worlds split over Ray actors:
+    ``address="local"`` starts a Ray here, ``"auto"`` or ``"host:port"`` joins a cluster;
+    ``workers`` actors; see :mod:`so101sim.envs.rayvec`).
 
     Raises:
         SettingError: an unknown task or backend, a bad count or option.
         So101SimError: ``backend="warp"`` where MuJoCo Warp or a CUDA device is missing.
     """
     check_choice(backend, "backend", BACKENDS)
+    if backend == "ray":
+        from .rayvec import RayVectorEnv  # imported here only: it needs the optional Ray
+
+        return RayVectorEnv(task, num_envs, **env_kwargs)
     if backend == "warp":
         from .warp import WarpVectorEnv  # imported here only: it needs the optional extra
 
@@ -221,4 +51,4 @@ def make_vec(
     return So101VectorEnv(task, num_envs, nthread=nthread, **env_kwargs)
 
 
-__all__ = ["BACKENDS", "MAX_WORLDS", "So101VectorEnv", "make_vec"]
+__all__ = ["BACKENDS", "MAX_WORLDS", "Backend", "So101VectorEnv", "make_vec"]

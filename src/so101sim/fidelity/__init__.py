@@ -6,9 +6,9 @@
   profile's fit, and Rhoban's BAM M1 model for comparison;
 * :func:`compare` (:mod:`.compare`) and :func:`fit` (:mod:`.fit`, :mod:`.fitparams`): a real
   arm's recording (a LeRobot dataset or a so101sim CSV log) replayed in the sim, where it is
-  wrong (:mod:`.windows`), and the profile fitted to it; the recordings are read by
-  :mod:`.logs` (:mod:`.logdata`, :mod:`.lerobotlog`, :mod:`.csvlog`, :mod:`.calibration`),
-  trusting nothing in them.
+  wrong (:mod:`.windows`; ``--plot``: :mod:`.plot`), and the profile fitted to it; the
+  recordings are read by :mod:`.logs` (:mod:`.logdata`, :mod:`.lerobotlog`, :mod:`.csvlog`,
+  :mod:`.calibration`), trusting nothing in them.
 
 scipy and pyarrow are optional (``pip install 'so101sim[fidelity]'``); what needs them says so.
 

@@ -41,7 +41,11 @@ class JointError:
 @dataclass(frozen=True)
 class CompareResult:
     """Per joint errors (arm units: degrees, gripper 0–100) of the sim against the real arm,
-    and of the commands against the real arm (the baseline)."""
+    and of the commands against the real arm (the baseline). ``traces`` (with
+    ``keep_traces``): per compared episode, ``episode`` (its index), ``t`` (s), ``real``,
+    ``sim``, ``command`` (readings, ``(n, 6)``), ``blocked`` (the real gripper blocked), and
+    ``real_pose``/``sim_pose``: the same poses as angles (what poses an arm: they differ from
+    the readings only under a profile's ``[calibration]``)."""
 
     frames: int
     episodes: list[int]
@@ -50,7 +54,7 @@ class CompareResult:
     joints: dict[str, JointError]
     command_baseline: dict[str, float]
     warnings: list[str] = field(default_factory=list)
-    traces: list[dict[str, np.ndarray]] = field(default_factory=list, repr=False)
+    traces: list[dict[str, Any]] = field(default_factory=list, repr=False)
     holds: dict[str, float] = field(default_factory=dict)
     moves: dict[str, float] = field(default_factory=dict)
     worst: list[Window] = field(default_factory=list)
@@ -169,7 +173,8 @@ def compare(
     for ep in data.episodes:
         command, blocked = with_stall(ep.command, ep.measured, ep.times)
         angles = Episode(ep.index, ep.times, from_log(command, cal), from_log(ep.measured, cal))
-        pred = to_log(replay_episode(sim, angles), cal)
+        pred_pose = replay_episode(sim, angles)  # angles: what poses the arm (compare --web)
+        pred = to_log(pred_pose, cal)
         real.append(ep.measured)
         simd.append(pred)
         cmd.append(ep.command)
@@ -179,8 +184,9 @@ def compare(
         used.append(keep)
         per_ep.append((ep.index, ep.times, np.abs(pred - ep.measured)))
         if keep_traces:
-            traces.append({"t": ep.times, "real": ep.measured, "sim": pred, "command": ep.command,
-                           "blocked": ~keep[:, -1]})  # fmt: skip
+            traces.append({"episode": ep.index, "t": ep.times, "real": ep.measured, "sim": pred,
+                           "command": ep.command, "blocked": ~keep[:, -1],
+                           "real_pose": angles.measured, "sim_pose": pred_pose})  # fmt: skip
         period = float(np.median(np.diff(ep.times)))
         lags.append([_lag(ep.measured[:, j], pred[:, j], period) for j in range(len(JOINT_NAMES))])
     r, s, c, st, ok = (np.concatenate(x) for x in (real, simd, cmd, still, used))
@@ -213,60 +219,3 @@ def compare(
         holds=_split_mae(err, st & ok), moves=_split_mae(err, ~st & ok),
         worst=worst_windows(per_ep, JOINT_NAMES), gripper_blocked_frames=blocked,
     )  # fmt: skip
-
-
-def plot_heading(result: CompareResult, blocked: bool) -> str:
-    """The plot's heading: which episode it draws (the first compared), that the panels' mae
-    are over every compared episode, and what the shading means."""
-    eps = result.episodes
-    head = f"episode {eps[0]}" + (
-        f" (the first of the {len(eps)} compared; each panel's mae is over all of them)"
-        if len(eps) > 1
-        else ""
-    )
-    keys = ["shaded red: the worst windows of error"] if result.worst else []
-    keys += ["blue: the real gripper blocked"] if blocked else []
-    return head + ("\n" + "; ".join(keys) if keys else "")
-
-
-def plot_overlay(result: CompareResult, path: str | Path, *, force: bool = False) -> Path:
-    """Real, sim and command per joint (the first episode kept in ``result.traces``), written
-    to ``path`` (PNG) atomically."""
-    from ..recording.paths import check_output_path, write_atomically
-
-    out = check_output_path(path, force=force, what="plot")
-    if not result.traces:
-        raise ValueError("compare(..., keep_traces=True) keeps what the plot draws")
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    from matplotlib.figure import Figure
-
-    tr = result.traces[0]
-    fig = Figure(figsize=(11, 12))
-    axes = fig.subplots(len(JOINT_NAMES), 1, sharex=True)
-    for j, (ax, name) in enumerate(zip(axes, JOINT_NAMES, strict=True)):
-        ax.plot(tr["t"], tr["command"][:, j], ":", color="gray", label="command")
-        ax.plot(tr["t"], tr["real"][:, j], color="black", label="real")
-        ax.plot(tr["t"], tr["sim"][:, j], color="tab:orange", label=f"sim ({result.profile})")
-        for w in result.worst:  # the worst windows, marked on every joint
-            if w.episode == result.episodes[0]:
-                ax.axvspan(w.t0, w.t1, color="tab:red", alpha=0.12, lw=0)
-        if j == len(JOINT_NAMES) - 1 and tr["blocked"].any():
-            ax.fill_between(
-                tr["t"], 0, 1, where=tr["blocked"], color="tab:blue", alpha=0.1,
-                transform=ax.get_xaxis_transform(), label="gripper blocked",
-            )  # fmt: skip
-        e = result.joints[name]
-        ax.set_ylabel(f"{name}\n{'0-100' if name == 'gripper' else 'deg'}")
-        ax.set_title(
-            f"{name}: sim mae {e.mae:.2f}, command mae {result.command_baseline[name]:.2f}",
-            fontsize=9,
-        )
-    axes[0].legend(loc="upper right", fontsize=8)
-    fig.suptitle(plot_heading(result, bool(tr["blocked"].any())), fontsize=9)
-    axes[-1].set_xlabel("time, s")
-    fig.tight_layout()
-    return write_atomically(
-        out, lambda p: fig.savefig(p, format="png", dpi=90), "plot", force=force
-    )

@@ -79,6 +79,35 @@ def merge(parts: Sequence[Sequence[VariantOutcome]], count: int) -> list[Variant
     return out
 
 
+def connect_ray(address: str, *, num_cpus: int | None = None) -> bool:
+    """Join (or start) the Ray cluster at ``address``: "auto" (a running cluster), "local"
+    (start one here, with ``num_cpus`` workers if given) or ``host:port``/``ray://host:port``.
+    Returns True if this call initialised Ray (the caller then shuts it down), False if Ray was
+    already initialised.
+
+    Raises:
+        SettingError: Ray is not installed, or no cluster answers at ``address`` (within
+            :data:`CONNECT_TIMEOUT_S` for an address given as ``host:port``).
+    """
+    if num_cpus is not None:
+        check_count(num_cpus, "Ray workers", minimum=1, maximum=4096)
+    ray = import_ray()
+    if ray.is_initialized():
+        return False
+    probe_address(address)  # an address that does not answer fails in seconds, not minutes
+    options = {"num_cpus": num_cpus, "include_dashboard": False} if address == "local" else {}
+    try:
+        ray.init(address=None if address == "local" else address, **options)
+    except (ConnectionError, RuntimeError, ValueError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise SettingError(
+            f"--ray {address}: no Ray cluster to join ({first}); expected a running "
+            "cluster (`ray start --head`, then --ray auto), its address, or --ray local "
+            "to start one here"
+        ) from None
+    return True
+
+
 def run_on_ray(
     job: VariantJob, address: str | None = "auto", *, chunk: int = DEFAULT_CHUNK
 ) -> list[VariantOutcome]:
@@ -90,17 +119,8 @@ def run_on_ray(
             :data:`CONNECT_TIMEOUT_S` for an address given as ``host:port``).
     """
     ray = import_ray()
-    if address is not None and not ray.is_initialized():
-        probe_address(address)  # an address that does not answer fails in seconds, not minutes
-        try:
-            ray.init(address=None if address == "local" else address)
-        except (ConnectionError, RuntimeError, ValueError) as exc:
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            raise SettingError(
-                f"--ray {address}: no Ray cluster to join ({first}); expected a running "
-                "cluster (`ray start --head`, then --ray auto), its address, or --ray local "
-                "to start one here"
-            ) from None
+    if address is not None:
+        connect_ray(address)
     task = ray.remote(num_cpus=1)(run_chunk)
     refs = [task.remote(job, a, b, 1) for a, b in chunks(job.count, chunk)]
     return merge(ray.get(refs), job.count)
@@ -111,6 +131,7 @@ __all__ = [
     "DEFAULT_CHUNK",
     "RAY_HINT",
     "chunks",
+    "connect_ray",
     "import_ray",
     "merge",
     "probe_address",

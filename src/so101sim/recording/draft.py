@@ -42,6 +42,9 @@ log = logging.getLogger(__name__)
 SMALL_FRAME_PX = 256
 """Frames whose longer side is at most this many pixels are drawn with the smaller meshes."""
 
+COLLISION_GROUP = 3
+"""The shipped model's collision mesh geoms are in this geom group (never drawn); a scene's
+own mesh objects (drawn and colliding, in group 0) are kept."""
 SHIPPED_MODEL_FILES = ("scene.xml", "so101_new_calib.xml", "so101_old_calib.xml")
 """The shipped MJCF files, in :func:`so101sim.model.model_dir`."""
 
@@ -108,11 +111,11 @@ def _add_draft_meshes(spec: mujoco.MjSpec, small: bool = False) -> dict[str, str
 
 def _use_draft_meshes(spec: mujoco.MjSpec, swapped: dict[str, str]) -> None:
     """Point the visual mesh geoms at their drafts and drop the collision mesh geoms (group 3,
-    never drawn)."""
+    never drawn; a scene's mesh objects, drawn and colliding, stay)."""
     for geom in list(spec.geoms):
         if geom.type != mujoco.mjtGeom.mjGEOM_MESH:
             continue
-        if geom.contype or geom.conaffinity:
+        if (geom.contype or geom.conaffinity) and geom.group == COLLISION_GROUP:
             spec.delete(geom)
         elif geom.meshname in swapped:
             geom.meshname = swapped[geom.meshname]

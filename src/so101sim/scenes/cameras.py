@@ -15,15 +15,21 @@ robot's cameras (:class:`so101sim.robot.SO101SimFollower`) are built on it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+import tomllib
+from collections.abc import Sequence
+from dataclasses import dataclass, fields, replace
 
 import mujoco
 import numpy as np
 
 from ..errors import CameraError, ModelError
-from ..validation import check_count, check_range
+from ..validation import check_count, check_input_file, check_range
 
 MAX_CAMERA_PIXELS = 4096
+MAX_CAMERAS = 16
+"""The most cameras one scene or camera file may hold."""
+MAX_CAMERA_FILE_BYTES = 64 * 1024
+"""The largest camera file read (a few cameras take a few hundred bytes)."""
 """The largest camera width or height accepted, in pixels."""
 
 CAMERA_BODIES = ("world", "gripper")
@@ -167,3 +173,158 @@ def camera_names(model: mujoco.MjModel) -> list[str]:
 def fovy_to_focal(fovy: float, height: int) -> float:
     """The focal length in pixels of a camera with vertical field of view ``fovy`` degrees."""
     return height / (2 * math.tan(math.radians(fovy) / 2))
+
+
+CameraLike = str | CameraSpec
+"""A camera as the environments and ``so101sim dataset`` take it: a preset's name, or a
+:class:`CameraSpec` (e.g. from :func:`load_cameras`)."""
+
+
+def camera_name(cam: CameraLike) -> str:
+    """The name under which ``cam``'s images are stored (``observation.images.<name>``)."""
+    return cam.name if isinstance(cam, CameraSpec) else cam
+
+
+def resolve_cameras(
+    cameras: Sequence[CameraLike], size: tuple[int, int] | None = None
+) -> tuple[CameraSpec, ...]:
+    """Each camera as a validated :class:`CameraSpec` (a name must be a preset's), rendered at
+    ``size`` = (height, width) when given.
+
+    Raises:
+        CameraError: an unknown name, an invalid spec, a name given twice, or too many.
+    """
+    if isinstance(cameras, str | CameraSpec):
+        raise CameraError(f"cameras = {cameras!r}; expected a list of cameras, such as ['front']")
+    cams = list(cameras)
+    if len(cams) > MAX_CAMERAS:
+        raise CameraError(f"{len(cams)} cameras given; expected at most {MAX_CAMERAS}")
+    specs = []
+    for cam in cams:
+        if isinstance(cam, CameraSpec):
+            spec = cam.validated()
+        elif isinstance(cam, str) and cam in PRESET_CAMERAS:
+            spec = PRESET_CAMERAS[cam]
+        else:
+            raise CameraError(
+                f"camera {cam!r} is not a preset; expected one of {', '.join(PRESET_CAMERAS)}, "
+                "or a camera of your own (its pos, lookat and fovy) from a camera file "
+                "(docs/cameras.md)"
+            )
+        if size is not None:
+            spec = replace(spec, height=size[0], width=size[1]).validated()
+        specs.append(spec)
+    names = [c.name for c in specs]
+    if len(set(names)) != len(names):
+        twice = sorted({n for n in names if names.count(n) > 1})[0]
+        raise CameraError(f"camera {twice!r} is given twice; camera names must differ")
+    return tuple(specs)
+
+
+_FILE_FIELDS = {f.name for f in fields(CameraSpec)} - {"name"}
+
+
+def cameras_from_toml(text: str, where: str = "camera file") -> tuple[CameraSpec, ...]:
+    """The cameras of a camera file's text: one table per camera, named as its images will
+    be. A preset's name changes that preset's fields; any other name needs ``pos`` and
+    ``lookat``::
+
+        [front]                     # the front preset, moved
+        pos = [0.45, 0.0, 0.40]     # metres, in the world (x forward, z up)
+        fovy = 55                   # vertical field of view, degrees
+
+        [top]                       # a camera of your own
+        pos = [0.20, 0.0, 0.80]
+        lookat = [0.20, 0.0, 0.0]
+        fovy = 60
+
+    Raises:
+        CameraError: invalid TOML, an unknown field, a value of the wrong kind or out of range.
+    """
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise CameraError(
+            f"{where} is not valid TOML ({exc}); expected one table per camera"
+        ) from exc
+    if not raw:
+        raise CameraError(f"{where} names no camera; expected tables such as [front]")
+    if len(raw) > MAX_CAMERAS:
+        raise CameraError(f"{where} has {len(raw)} cameras; expected at most {MAX_CAMERAS}")
+    cams = []
+    for name, table in raw.items():
+        if not isinstance(table, dict):
+            raise CameraError(
+                f"{where}: {name} = {table!r}; expected a table [{name}] of the camera's fields"
+            )
+        unknown = sorted(set(table) - _FILE_FIELDS)
+        if unknown:
+            raise CameraError(
+                f"{where}: camera {name!r} has the unknown field {unknown[0]!r}; expected "
+                f"{', '.join(sorted(_FILE_FIELDS))}"
+            )
+        values: dict[str, object] = {}
+        for key, value in table.items():
+            if key in ("pos", "lookat", "up"):
+                ok = isinstance(value, list) and all(
+                    isinstance(x, int | float) and not isinstance(x, bool) for x in value
+                )
+                if not ok or len(value) != 3:
+                    raise CameraError(
+                        f"{where}: camera {name!r} {key} = {value!r}; expected 3 numbers in metres"
+                    )
+                value = tuple(float(x) for x in value)
+            elif key == "body" and not isinstance(value, str):
+                raise CameraError(f"{where}: camera {name!r} body = {value!r}; expected a name")
+            elif key != "body" and (not isinstance(value, int | float) or isinstance(value, bool)):
+                raise CameraError(f"{where}: camera {name!r} {key} = {value!r}; expected a number")
+            values[key] = value
+        try:
+            cams.append(camera(name, **values))
+        except CameraError as exc:
+            raise CameraError(f"{where}: {exc}") from None
+    return tuple(cams)
+
+
+def load_cameras(path: object) -> tuple[CameraSpec, ...]:
+    """The cameras of a camera file (:func:`cameras_from_toml` says its format).
+
+    Raises:
+        CameraError: the file cannot be read, is too large, or holds an invalid camera.
+    """
+    p = check_input_file(path, "camera file", expected="a TOML file of cameras", error=CameraError)
+    size = p.stat().st_size
+    if size > MAX_CAMERA_FILE_BYTES:
+        raise CameraError(
+            f"camera file {str(p)!r} is {size} bytes; expected a few cameras "
+            f"(at most {MAX_CAMERA_FILE_BYTES} bytes)"
+        )
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CameraError(f"camera file {str(p)!r} cannot be read: {exc}") from exc
+    return cameras_from_toml(text, f"camera file {str(p)!r}")
+
+
+def parse_cameras(text: str) -> tuple[CameraLike, ...]:
+    """A command line's ``--cameras``: comma-separated presets and camera files
+    (``front,wrist``, ``my_rig.toml``, ``wrist,top.toml``), in that order.
+
+    Raises:
+        CameraError: an unknown preset, or a camera file :func:`load_cameras` refuses.
+    """
+    out: list[CameraLike] = []
+    for item in (i.strip() for i in text.split(",")):
+        if not item:
+            continue
+        if item.lower().endswith(".toml"):
+            out.extend(load_cameras(item))
+        elif item in PRESET_CAMERAS:
+            out.append(item)
+        else:
+            raise CameraError(
+                f"camera {item!r} is not a preset; expected {', '.join(PRESET_CAMERAS)} or a "
+                "camera file ending in .toml (docs/cameras.md)"
+            )
+    resolve_cameras(out)  # names given twice, too many
+    return tuple(out)

@@ -21,9 +21,12 @@ from typing import Literal, get_args
 from ..errors import SettingError
 from ..validation import check_choice, check_count, check_range
 
-ObjectShape = Literal["box", "cylinder", "sphere", "bowl", "open_box"]
+ObjectShape = Literal["box", "cylinder", "sphere", "bowl", "open_box", "mesh", "mark"]
 """Object shapes: solid ``box``, ``cylinder``, ``sphere``; containers ``bowl`` (round, with a
-wall of flat segments) and ``open_box`` (a tray)."""
+wall of flat segments) and ``open_box`` (a tray); ``mesh``, a convex mesh generated at load
+time (an octagonal prism with a chamfered top, like a nut: :func:`so101sim.scenes.parts.
+mesh_vertices`); ``mark``, a flat disc that only shows a place on the table (it touches
+nothing and floats where it is put: a goal)."""
 SHAPES: tuple[str, ...] = get_args(ObjectShape)
 """The object shapes (:data:`ObjectShape`), the list the objects are checked against."""
 CONTAINERS = ("bowl", "open_box")
@@ -32,11 +35,15 @@ Surface = Literal["table", "floor"]
 """What the arm and the objects stand on: a table (a box whose top is z = 0, the floor below
 it) or the shipped floor plane itself."""
 SURFACES: tuple[str, ...] = get_args(Surface)
+MARKS = ("mark",)
+"""Shapes that touch nothing (goals drawn on the table)."""
 Cone = Literal["elliptic", "pyramidal"]
 """MuJoCo's friction cone for the scene's contacts."""
 CONES: tuple[str, ...] = get_args(Cone)
 
 MIN_SIZE_M, MAX_SIZE_M = 0.005, 0.5
+MIN_MARK_M = 0.0005
+"""A mark may be as thin as this (metres): it only shows a place."""
 MIN_MASS_KG, MAX_MASS_KG = 0.001, 5.0
 MAX_OBJECTS = 32
 MAX_REACH_M = 1.0
@@ -78,7 +85,8 @@ class SceneObject:
     """An object on the table: a free body the arm can push, grasp and carry.
 
     ``size`` in metres: ``box`` and ``open_box`` (x, y, z) edge lengths (one number: a cube);
-    ``cylinder`` and ``bowl`` (diameter, height); ``sphere`` (diameter,). ``mass`` in kg,
+    ``cylinder``, ``bowl`` and ``mark`` (diameter, height); ``sphere`` (diameter,); ``mesh``
+    (width across the octagon's flats, height). ``mass`` in kg,
     ``rgba`` its colour, ``friction`` its sliding friction coefficient (the contact with the
     gripper's pads or the table uses the larger of the two). ``wall`` is a container's wall and
     floor thickness."""
@@ -143,16 +151,27 @@ class SceneObject:
         objects' centres must be so that they cannot overlap."""
         if self.shape in ("box", "open_box"):
             return math.hypot(self.size[0], self.size[1]) / 2
+        if self.shape == "mesh":  # across the octagon's corners
+            return self.size[0] / 2 / math.cos(math.pi / 8)
         return self.size[0] / 2
 
 
 def _size(shape: str, value: object, what: str) -> tuple[float, ...]:
-    n = {"box": (1, 3), "open_box": (1, 3), "cylinder": (2,), "bowl": (2,), "sphere": (1,)}[shape]
+    n = {
+        "box": (1, 3),
+        "open_box": (1, 3),
+        "cylinder": (2,),
+        "bowl": (2,),
+        "sphere": (1,),
+        "mesh": (2,),
+        "mark": (2,),
+    }[shape]
     if not isinstance(value, (list, tuple)) and n[0] == 1:
         value = (value,)
     v = _vector(value, what, n)
+    low = MIN_MARK_M if shape in MARKS else MIN_SIZE_M
     for x in v:
-        check_range(x, what, low=MIN_SIZE_M, high=MAX_SIZE_M, unit=" m")
+        check_range(x, what, low=low, high=MAX_SIZE_M, unit=" m")
     return (v[0], v[0], v[0]) if shape in ("box", "open_box") and len(v) == 1 else v
 
 

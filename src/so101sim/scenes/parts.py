@@ -52,6 +52,11 @@ PAD_HALF_WIDTH = 0.0085
 PAD_THICKNESS = 0.003
 CONTAINER_SEGMENTS = 16
 """A bowl's wall is this many flat segments."""
+MESH_SIDES = 8
+"""A ``mesh`` object's sides: an octagon, so a top-down grasp at any multiple of 90° from its
+yaw closes across two flats, as on a cube."""
+MESH_CHAMFER = 0.2
+"""A ``mesh`` object's top edge is cut off by this share of its half width."""
 
 
 def _mat(quat: np.ndarray) -> np.ndarray:
@@ -204,6 +209,18 @@ def _parts(obj: SceneObject) -> list[tuple[int, list[float], list[float], float]
     return parts
 
 
+def mesh_vertices(width: float, height: float) -> np.ndarray:
+    """The vertices (metres, centred) of a ``mesh`` object: an octagonal prism ``width`` across
+    its flats (a face's normal along x) and ``height`` tall, its top edge chamfered (MuJoCo
+    collides and draws the convex hull of these points)."""
+    r = width / 2 / math.cos(math.pi / MESH_SIDES)  # across the corners
+    c = MESH_CHAMFER * width / 2
+    h = height / 2
+    angles = [math.pi / MESH_SIDES + 2 * math.pi * k / MESH_SIDES for k in range(MESH_SIDES)]
+    rings = ((r, -h), (r, h - c), (r - c / math.cos(math.pi / MESH_SIDES), h))
+    return np.array([(rr * math.cos(a), rr * math.sin(a), z) for rr, z in rings for a in angles])
+
+
 def _volume(kind: int, size: list[float]) -> float:
     if kind == mujoco.mjtGeom.mjGEOM_BOX:
         return 8 * size[0] * size[1] * size[2]
@@ -221,6 +238,30 @@ def add_object(spec: mujoco.MjSpec, obj: SceneObject, contact: ContactSettings) 
         quat=[math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)],
     )
     body.add_freejoint(name=f"{obj.name}_joint")
+    if obj.shape == "mark":  # a goal: touches nothing, gravity compensated so it stays put
+        body.gravcomp = 1.0
+        body.add_geom(
+            name=obj.name,
+            type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+            size=[obj.size[0] / 2, obj.height / 2],
+            rgba=list(obj.rgba),
+            mass=obj.mass,
+            contype=0,
+            conaffinity=0,
+        )
+        return
+    if obj.shape == "mesh":
+        mesh = spec.add_mesh(name=f"{obj.name}_mesh")
+        mesh.uservert = mesh_vertices(obj.size[0], obj.height).ravel().tolist()
+        geom = body.add_geom(
+            name=obj.name,
+            type=mujoco.mjtGeom.mjGEOM_MESH,
+            meshname=mesh.name,
+            rgba=list(obj.rgba),
+            mass=obj.mass,
+        )
+        _contact(geom, contact, obj.friction, OBJECT_BITS)
+        return
     parts = _parts(obj)
     total = sum(_volume(k, s) for k, s, _, _ in parts)
     for i, (kind, size, pos, a) in enumerate(parts):

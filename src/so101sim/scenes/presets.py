@@ -1,6 +1,7 @@
-"""Named table-top scenes (:data:`SCENE_PRESETS`: ``pick_cube``, ``cube_to_bowl``), scenes
-read from a motion file's ``[scene]`` table (:func:`scene_from_dict`), and the colour, light
-and camera jitter drawn from a seed for images (:class:`VisualJitter`).
+"""Named table-top scenes (:data:`SCENE_PRESETS`: ``pick_cube``, ``cube_to_bowl``, the lifts,
+``push``, ``stack``), scenes read from a motion file's ``[scene]`` table
+(:func:`scene_from_dict`), and the colour, light and camera jitter drawn from a seed for
+images (:class:`VisualJitter`).
 
 The presets' objects stand where a top-down grasp reaches them: the tool pointing straight
 down reaches from about 9.5 to 22 cm from the shoulder's pan axis (3.9 cm in front of the base)
@@ -70,6 +71,45 @@ SPHERE = SceneObject(
 )
 """A 2.8 cm, 25 g green ball (the lift task)."""
 
+MESH_OBJECT = SceneObject(
+    "object",
+    shape="mesh",
+    size=(0.025, 0.03),
+    mass=0.03,
+    rgba=(0.6, 0.3, 0.8, 1.0),
+    pos=(0.19, 0.08),
+    x_range=(0.14, 0.23),
+    y_range=(-0.11, 0.11),
+    yaw_range=(-45.0, 45.0),
+)
+"""A 2.5 cm wide (across its flats), 3 cm tall, 30 g purple octagonal nut-like mesh made at
+load time (the lift task)."""
+PUSH_CUBE = replace(CUBE, x_range=(0.15, 0.21), y_range=(-0.09, 0.09))
+"""The cube to push: a little inside the pick patch, so the fixed jaw behind it is in reach."""
+MARK = SceneObject(
+    "mark",
+    shape="mark",
+    size=(0.04, 0.001),
+    mass=0.001,
+    rgba=(0.1, 0.75, 0.25, 1.0),
+    pos=(0.19, -0.08),
+    x_range=(0.14, 0.23),
+    y_range=(-0.11, 0.11),
+)
+"""A 4 cm green disc on the table where the cube is to be pushed (it touches nothing)."""
+BLOCK = SceneObject(
+    "block",
+    shape="box",
+    size=(0.03, 0.03, 0.03),
+    mass=0.08,
+    rgba=(0.2, 0.45, 0.85, 1.0),
+    pos=(0.19, -0.08),
+    x_range=(0.14, 0.23),
+    y_range=(-0.11, 0.11),
+    yaw_range=(-45.0, 45.0),
+)
+"""A 3 cm, 80 g blue cube to stack the red one on."""
+
 FOLDED_ARM = (-0.1, 0.21, -0.035, 0.035)
 """Where the arm in its folded rest pose (:data:`so101sim.units.STARTING_POSE`) lies on the
 table: its gripper rests 16 mm above the table up to 19 cm in front of the base. Drawn start
@@ -84,9 +124,12 @@ SCENE_PRESETS: dict[str, TableScene] = {
     ),
     "lift_cylinder": TableScene(objects=(CYLINDER,), name="lift_cylinder", keep_out=(FOLDED_ARM,)),
     "lift_sphere": TableScene(objects=(SPHERE,), name="lift_sphere", keep_out=(FOLDED_ARM,)),
+    "lift_mesh": TableScene(objects=(MESH_OBJECT,), name="lift_mesh", keep_out=(FOLDED_ARM,)),
+    "push": TableScene(objects=(PUSH_CUBE, MARK), name="push", keep_out=(FOLDED_ARM,)),
+    "stack": TableScene(objects=(CUBE, BLOCK), name="stack", keep_out=(FOLDED_ARM,)),
 }
-"""Table-top scenes by name: a cube to pick up; a cube to put in a bowl; a cylinder or a
-ball to lift (the lift tasks)."""
+"""Table-top scenes by name: a cube to pick up; a cube to put in a bowl; a cylinder, a ball or
+a mesh to lift (the lift tasks); a cube to push onto a mark; a cube to stack on a block."""
 
 
 def preset_scene(
@@ -132,7 +175,7 @@ def scene_from_dict(d: Mapping[str, object]) -> TableScene:
         cameras = ["front"]           # preset camera names
         [[scene.objects]]             # replaces the preset's objects when given
         name = "cube"
-        shape = "box"                 # box, cylinder, sphere, bowl, open_box
+        shape = "box"                 # box, cylinder, sphere, bowl, open_box, mesh, mark
         size = 0.025                  # metres (see SceneObject)
         mass = 0.03                   # kg
         color = [0.9, 0.1, 0.1]

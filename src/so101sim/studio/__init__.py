@@ -2,7 +2,7 @@
 
 Works on a server with no display and no GPU (the browser draws); needs the ``web`` extra
 (``pip install "so101sim[web]"``: viser and mjviser). The command line's ``--web`` option
-(``so101sim view/run/hold/pose/demo/record --web``) uses it; from Python::
+(``so101sim view/run/hold/pose/demo/record/compare --web``) uses it; from Python::
 
     sim = so101sim.Simulation()
     studio = so101sim.studio.attach(sim)   # in Jupyter the cell shows the link
@@ -19,7 +19,9 @@ Works on a server with no display and no GPU (the browser draws); needs the ``we
 * :mod:`.live`: :class:`StudioObserver` (a run, paced to the wall clock) and
   :class:`StudioViewer` (``launch_passive`` for a script);
 * :mod:`.pose`: :class:`PoseStudio` (one slider per joint, the tip, copy buttons, warnings
-  when the arm is in the floor or the table).
+  when the arm is in the floor or the table);
+* :mod:`.compare`: :class:`CompareStudio` (``so101sim compare --web``: a recording's episodes
+  replayed, the sim's arm beside the real arm drawn as a translucent ghost, :mod:`.ghost`).
 
 May import: ``so101sim.viewer`` (the pose finder's watcher, scene and warnings),
 ``so101sim.recording``, ``so101sim.motion``, ``so101sim.sim``, ``so101sim.kinematics``,

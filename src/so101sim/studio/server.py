@@ -144,7 +144,7 @@ class Studio:
         gui = self.server.gui
         self.status = gui.add_markdown("**t = 0.000 s**")
         # the pose finder's sliders say the angles already: its table starts folded
-        with gui.add_folder("Angles (commanded, measured)", expand_by_default=controls):
+        with gui.add_folder(self.angles_title, expand_by_default=controls):
             self.angles = gui.add_markdown("")
         if not controls:
             self.play_button = self.pause_button = self.restart_button = None
@@ -206,10 +206,20 @@ class Studio:
             d.time = frame.time
             mujoco.mj_kinematics(self.model, d)
         self.scene.update_from_mjdata(d)
+        self.status.content = self.status_text(frame)
+        self.angles.content = self.angles_text(frame)
+
+    def status_text(self, frame: Frame) -> str:
+        """The page's status line for ``frame`` (markdown)."""
         phase = f" · phase **{frame.phase}**" if frame.phase else ""
-        state = "" if not self.finished else (" · playing" if self.playing else " · paused")
-        self.status.content = f"**t = {frame.time:.3f} s**{phase}{state}"
-        self.angles.content = angles_table(frame)
+        return f"**t = {frame.time:.3f} s**{phase}{self.player_state()}"
+
+    def player_state(self) -> str:
+        return "" if not self.finished else (" · playing" if self.playing else " · paused")
+
+    def angles_text(self, frame: Frame) -> str:
+        """The angles table for ``frame`` (markdown)."""
+        return angles_table(frame)
 
     def wait_while_paused(self) -> bool:
         """For a live run: block while the page's Pause is on; True if it paused at all."""
@@ -297,6 +307,7 @@ class Studio:
                     self.playing = False
 
     speed = 1.0  # the player's speed (set to the run's --speed)
+    angles_title = "Angles (commanded, measured)"  # the panel's folder of the angles table
 
     # ------------------------------------------------------------------ life
     @property
