@@ -181,3 +181,20 @@ def test_data_changed_since_lerobot_wrote_its_stats_are_refused(ds, tmp_path, ca
 
     _rewrite(ds, moved)
     assert "disagrees with meta/stats.json" in _both(capsys, ds, tmp_path)[0]
+
+
+def test_a_dataset_so101sim_wrote_is_read_in_degrees_without_a_guess(tmp_path):
+    """``so101sim dataset`` writes degrees (its meta/so101sim.json says who wrote it): --units
+    auto takes them as degrees, not as LeRobot's range mode mapped onto the model's ranges."""
+    from so101sim.fidelity.logs import read_log
+    from so101sim.model import default_units
+
+    root = write_lerobot(tmp_path / "ds", _episodes())
+    units = default_units()
+    guessed = read_log(root, units)
+    assert guessed.range_guess and guessed.warnings  # a stranger's dataset within ±100
+    (root / "meta" / "so101sim.json").write_text(json.dumps({"generator": "so101sim dataset"}))
+    ours = read_log(root, units)
+    assert not ours.range_guess and not ours.warnings
+    degrees = read_log(root, units, units="degrees")
+    np.testing.assert_array_equal(ours.episodes[0].measured, degrees.episodes[0].measured)

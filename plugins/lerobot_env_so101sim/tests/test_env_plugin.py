@@ -67,8 +67,8 @@ def test_the_config_names_the_gym_env_and_the_policys_features():
 def test_bad_values_fail_when_the_config_is_made():
     with pytest.raises(SettingError, match="unknown camera 'top'"):
         SO101SimPickCubeEnv(cameras=["top"])
-    with pytest.raises(SettingError, match="unknown task 'Stack-v0'"):
-        SO101SimPickCubeEnv(task="Stack-v0")
+    with pytest.raises(SettingError, match="unknown task 'Juggle-v0'"):
+        SO101SimPickCubeEnv(task="Juggle-v0")
     with pytest.raises(SettingError, match="observation_width"):
         SO101SimPickCubeEnv(observation_width=63)
     with pytest.raises(draccus.utils.ParsingError) as info:

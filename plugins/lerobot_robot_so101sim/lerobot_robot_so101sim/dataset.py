@@ -276,6 +276,10 @@ def generate_dataset(
             "task": settings.task,
             "servo_model": servo_model(),  # the environments' default arm profile
             "settings": jsonable(asdict(settings)),
+            # the cameras as rendered (at --image-size): the rig to give eval or a real follower
+            "cameras": jsonable(
+                [asdict(c) for c in resolve_cameras(settings.cameras, settings.image_size)]
+            ),
             "episode_seeds": kept,
             "failed_seeds": failed,
             "randomize": settings.randomize,

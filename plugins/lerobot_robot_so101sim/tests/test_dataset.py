@@ -148,6 +148,10 @@ def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take
     )  # fmt: skip
     meta = json.loads((root / "meta" / "so101sim.json").read_text())
     assert meta["settings"]["cameras"][0]["pos"] == [0.2, 0.0, 0.8]  # the rig, kept with it
+    assert [(c["name"], c["width"], c["height"]) for c in meta["cameras"]] == [
+        ("top", 64, 48),
+        ("wrist", 64, 48),
+    ]  # fmt: skip  (as rendered)
     ds = LeRobotDataset(REPO_ID, root=root)
     assert ds.features["observation.state"]["names"] == KEYS
     assert ds.features["action"]["names"] == KEYS

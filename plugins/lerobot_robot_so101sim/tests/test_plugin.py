@@ -116,7 +116,7 @@ def test_robot_scene_puts_the_presets_objects_in_the_robots_scene():
     model = robot.follower._sim.model
     assert mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "cube") >= 0
     with pytest.raises(draccus.utils.ParsingError) as info:
-        parse_robot("type=so101_sim", "scene=stack")
+        parse_robot("type=so101_sim", "scene=juggle")
     assert isinstance(info.value.__cause__, sim_errors.RobotConfigError)
     assert "pick_cube, cube_to_bowl" in str(info.value.__cause__)
 

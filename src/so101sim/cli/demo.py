@@ -16,6 +16,12 @@ from .tools import add_video_options
 SubParsers = Any  # argparse's private _SubParsersAction
 
 
+ATTEMPT_NOUN = {"push": "push"}
+"""What a task's expert tries again when it falls short (others: a grasp)."""
+NO_ATTEMPTS = ("look_at", "reach")
+"""Tasks whose expert tries nothing again (it aims the camera or the tip)."""
+
+
 def add_demo_command(sub: SubParsers, *, arm: argparse.ArgumentParser) -> None:
     """Add ``demo`` to the parser's subcommands."""
     p = sub.add_parser(
@@ -117,8 +123,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
         status = f"success at t = {result.success_time:.2f} s"
     else:
         status = "FAILED" if result.completed else "stopped (viewer closed)"
-    tries = "grasp" if result.attempts == 1 else "grasps"
-    grasps = "" if "goal_distance_m" in result.figures else f", {result.attempts} {tries} tried"
+    what = ATTEMPT_NOUN.get(args.task, "grasp")  # what the expert's attempts are
+    tries = what if result.attempts == 1 else f"{what}es" if what.endswith("sh") else f"{what}s"
+    grasps = (
+        ""
+        if "goal_distance_m" in result.figures or args.task in NO_ATTEMPTS
+        else f", {result.attempts} {tries} tried"
+    )
     say(
         f"{args.task}, seed {result.seed}: {status} "
         f"({result.sim_time:.2f} s of simulated time in all, {result.steps} steps{grasps})"

@@ -53,25 +53,11 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def _cameras(text: str) -> tuple[Any, ...]:
-    """``--cameras``: presets and camera files, as :func:`so101sim.scenes.parse_cameras`."""
-    from ..errors import So101SimError
+    """``--cameras``: presets and camera files, as :func:`so101sim.scenes.parse_cameras`
+    (read when the command runs, so that an error is one line)."""
     from ..scenes import parse_cameras  # imported here: it imports MuJoCo (start-up time)
 
-    try:
-        return parse_cameras(text)
-    except So101SimError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
-def _camera_file(text: str) -> str:
-    from ..errors import So101SimError
-    from ..scenes import load_cameras  # imported here: it imports MuJoCo (start-up time)
-
-    try:
-        load_cameras(text)
-    except So101SimError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-    return text
+    return parse_cameras(text)
 
 
 RANDOMIZE_HELP = (
@@ -105,8 +91,7 @@ def add_learning_commands(sub: SubParsers) -> None:
     p.add_argument("--fps", type=int, default=30, help="frames per simulated second (30)")
     p.add_argument(
         "--cameras",
-        type=_cameras,
-        default=(),
+        default="",
         help="comma-separated presets (front, wrist) and TOML files of cameras of your own "
         "(their pose and field of view: docs/cameras.md), e.g. front,wrist or wrist,my_rig.toml; "
         "none by default",
@@ -172,7 +157,6 @@ def add_learning_commands(sub: SubParsers) -> None:
     p.add_argument("--device", default="cpu", help="torch device (cpu)")
     p.add_argument(
         "--cameras",
-        type=_camera_file,
         default=None,
         metavar="FILE.toml",
         help="where the policy's cameras are when they are not the presets (the camera file "
@@ -218,7 +202,7 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         repo_id=args.repo_id,
         seed=args.seed,
         fps=args.fps,
-        cameras=args.cameras,
+        cameras=_cameras(args.cameras),
         image_size=args.image_size,
         environment_state=args.environment_state,
         randomize=args.randomize,

@@ -54,6 +54,18 @@ def _joint_order(names: object, what: str) -> list[int]:
     return [clean.index(j) for j in JOINT_NAMES]
 
 
+def _written_by_so101sim(root: Path) -> bool:
+    """Whether ``so101sim dataset`` wrote the dataset (its ``meta/so101sim.json`` says so)."""
+    path = root / "meta" / "so101sim.json"
+    if not path.is_file():
+        return False
+    try:
+        meta = json.loads(read_small(path, "meta/so101sim.json"))
+    except (ValueError, LogError):
+        return False
+    return isinstance(meta, dict) and meta.get("generator") == "so101sim dataset"
+
+
 def _info(root: Path) -> dict:
     path = root / "meta" / "info.json"
     if not path.exists():
@@ -192,6 +204,8 @@ def read_lerobot(
         raise LogError(f"{str(root)!r}: a negative episode or frame index; the dataset is damaged")
     ep, fr = ep.astype(np.int64), fr.astype(np.int64)
     warnings: list[str] = []
+    if mode == "auto" and calibration is None and _written_by_so101sim(root):
+        mode = "degrees"  # `so101sim dataset` writes the body joints in degrees
     act, obs, guessed = to_arm_units(act, obs, mode, units, calibration, warnings)
     order = np.lexsort((fr, ep))  # by episode, then frame: each episode one slice
     found, first = np.unique(ep[order], return_index=True)
