@@ -27,20 +27,20 @@ HANDINS = {
 }
 
 
-def motion_text(kind: str, profile: str = "linear") -> str:
+def motion_text(kind: str, shape: str = "linear") -> str:
     steps = {**LAB, **HANDINS[kind]}
-    text = f'start = "rest"\nprofile = "{profile}"\n'
+    text = f'start = "rest"\nshape = "{shape}"\n'
     for name, body in steps.items():
         if body is not None:
             text += f'\n[[steps]]\nname = "{name}"\n{body}\n'
     return text
 
 
-def make_log(folder: Path, kind: str, *, profile: str = "linear", arm: str | None = None) -> Path:
+def make_log(folder: Path, kind: str, *, shape: str = "linear", arm: str | None = None) -> Path:
     """The CSV log of the motion ``kind`` (a key of HANDINS) run by ``so101sim run``."""
     folder.mkdir(parents=True, exist_ok=True)
-    motion = folder / f"{kind}-{profile}-{arm}.toml"
-    motion.write_text(motion_text(kind, profile))
+    motion = folder / f"{kind}-{shape}-{arm}.toml"
+    motion.write_text(motion_text(kind, shape))
     log = motion.with_suffix(".csv")
     argv = ["run", "--headless", "--log", str(log), str(motion)]
     assert main([*argv, *(["--arm", arm] if arm else [])]) == 0

@@ -392,3 +392,47 @@ def test_the_stepping_site_check_finds_each_kind_of_call():
     assert found.count("import mujoco.rollout") == 2
     assert found.count("rollout") == 2 and "mj_step" in found and "mj_step1" in found
     assert "mj_forward" not in found
+
+
+# The model builder: the only module that compiles a model (issue 30: "one model builder";
+# docs/architecture.md, model/build.py). Parsing a file into an MjSpec (MjSpec.from_file) and
+# reading a compiled model back (MjModel.from_binary_path, the disk cache) are not compiling.
+BUILDER = {"model.build"}
+_COMPILE_NAMES = {"compile", "from_xml_path", "from_xml_string"}
+
+
+def _compile_calls(tree: ast.AST) -> list[tuple[int, str]]:
+    """``(line, name)`` of each call that compiles a MuJoCo model in ``tree``: ``spec.compile()``
+    (any receiver but the ``re`` module), ``MjModel.from_xml_path``/``from_xml_string``."""
+    hits = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+            f = node.func
+            if f.attr in _COMPILE_NAMES and not (
+                isinstance(f.value, ast.Name) and f.value.id == "re"
+            ):
+                hits.append((node.lineno, f.attr))
+    return hits
+
+
+def test_only_the_model_builder_compiles_models():
+    outside = [
+        f"{name}:{line} {call}"
+        for name, path in _modules().items()
+        if name not in BUILDER
+        for line, call in _compile_calls(ast.parse(path.read_text(encoding="utf-8")))
+    ]
+    assert not outside, f"a model compiled outside the builder ({', '.join(BUILDER)}): {outside}"
+    inside = _compile_calls(ast.parse(_modules()["model.build"].read_text(encoding="utf-8")))
+    assert {c for _, c in inside} == {"compile", "from_xml_path"}  # compile_spec, a plain file
+
+
+def test_the_compile_site_check_finds_each_kind_of_call():
+    code = (
+        "import re, mujoco\nx = re.compile('a')\nm = spec.compile()\n"
+        "m = mujoco.MjModel.from_xml_path(p)\nm = mujoco.MjModel.from_xml_string(t)\n"
+        "s = mujoco.MjSpec.from_file(p)\nm = mujoco.MjModel.from_binary_path(p)\n"
+        "m = mujoco.MjSpec().compile()\n"
+    )
+    found = sorted(c for _, c in _compile_calls(ast.parse(code)))
+    assert found == ["compile", "compile", "from_xml_path", "from_xml_string"]

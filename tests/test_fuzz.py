@@ -4,7 +4,7 @@ Each property says "nothing crashes, nothing is lost":
 
 * the motion-file loader returns a :class:`MotionFile` or raises :class:`MotionFileError` with
   a line inside the file, for texts built from the real keys (poses, steps, durations,
-  profiles, huge numbers, NaN, strings of any Unicode) and mangled at random, and for any
+  shapes, huge numbers, NaN, strings of any Unicode) and mangled at random, and for any
   text or bytes at all; for valid files, every step's line is the line it was written on;
 * the leader's calibration loader returns a calibration or raises :class:`CalibrationError`
   for any bytes, JSON or deeply nested brackets;
@@ -97,8 +97,8 @@ SCALARS = st.one_of(
 
 
 ODD_PARTS = (
-    "description", "units", "profile", "start", "pose name", "joint", "joint value",
-    "pose", "kind", "move", "duration", "gripper", "step profile", "step name", "steps",
+    "description", "units", "shape", "start", "pose name", "joint", "joint value",
+    "pose", "kind", "move", "duration", "gripper", "step shape", "step name", "steps",
     "layout", "text",
 )  # fmt: skip
 """The parts of a motion file :func:`motion_texts` may make odd, one per file."""
@@ -167,7 +167,7 @@ def step(parts: Parts) -> dict[str, str]:
     if kind in ("move", "gripper"):
         out["duration"] = parts("duration", SHORT, ODD_DURATIONS)
     if parts.draw(st.booleans()):
-        out["profile"] = parts("step profile", st.just("'minimum_jerk'"), VALUES)
+        out["shape"] = parts("step shape", st.just("'minimum_jerk'"), VALUES)
     if parts.draw(st.booleans()):
         out["name"] = parts("step name", ODD_TEXT.map(toml_string), VALUES)
     return {k: v for k, v in out.items() if v}
@@ -182,7 +182,7 @@ def motion_texts(draw: st.DrawFn) -> str:
     for key, good in (
         ("description", ODD_TEXT.map(toml_string)),
         ("units", st.sampled_from(["'deg'", "'rad'"])),
-        ("profile", st.sampled_from(["'linear'", "'minimum_jerk'", "'limited'"])),
+        ("shape", st.sampled_from(["'linear'", "'minimum_jerk'", "'limited'"])),
         ("start", st.sampled_from(["'rest'", "'zero'", "'up'"])),
     ):
         if draw(st.booleans()) or parts.odd == key:
@@ -378,7 +378,7 @@ def _file(out: Path, kind: str) -> str:
     """A file for ``kind`` (a motion file, a bad one, a calibration) written in ``out``, or a
     path that names no such file."""
     files = {
-        "ok": "[[steps]]\nmove = { elbow_flex = 5 }\nduration = 0.1\nprofile = 'minimum_jerk'\n",
+        "ok": "[[steps]]\nmove = { elbow_flex = 5 }\nduration = 0.1\nshape = 'minimum_jerk'\n",
         "long": "[[steps]]\nhold = 1e9\n",
         "bad": "[[steps]]\nmove = { elbow = 5 }\nduration = 0.1\n",
         "calibration": '{"shoulder_pan": {"id": 1}}',

@@ -43,7 +43,7 @@ class JointLimitError(JointValueError):
 
 
 class SettingError(So101SimError, ValueError):
-    """A setting that is not valid: a playback speed, a step count, a profile name, limits or
+    """A setting that is not valid: a playback speed, a step count, a move's shape name, limits or
     thresholds. The message gives the valid values.
 
     The more specific kinds of setting derive from it: :class:`DurationError`,

@@ -13,9 +13,9 @@ from so101sim.units import STARTING_POSE, ZERO_POSE
 
 def test_check_strict_refuses_a_limited_move_that_is_too_short():
     m = load_model()
-    check_strict(m, [Move(ZERO_POSE, 2.0, profile="limited")])  # long enough
+    check_strict(m, [Move(ZERO_POSE, 2.0, shape="limited")])  # long enough
     with pytest.raises(TrajectoryLimitError, match="--strict"):
-        check_strict(m, [Move(ZERO_POSE, 0.05, profile="limited")], STARTING_POSE)
+        check_strict(m, [Move(ZERO_POSE, 0.05, shape="limited")], STARTING_POSE)
 
 
 def test_prepare_checks_everything_then_runs_headless(monkeypatch, tmp_path):

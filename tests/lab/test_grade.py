@@ -24,8 +24,8 @@ from so101sim.units import JOINT_NAMES, STARTING_POSE
 def logs(tmp_path_factory):
     folder = tmp_path_factory.mktemp("logs")
     made = {k: make_log(folder, k) for k in ("lab", "slow", "short", "no_return", "drift")}
-    made["minimum_jerk"] = make_log(folder, "lab", profile="minimum_jerk")
-    made["limited"] = make_log(folder, "lab", profile="limited")
+    made["minimum_jerk"] = make_log(folder, "lab", shape="minimum_jerk")
+    made["limited"] = make_log(folder, "lab", shape="limited")
     made["official"] = make_log(folder, "lab", arm="official")
     return made
 

@@ -9,6 +9,7 @@ import pytest
 
 from so101sim.model import cache as modelcache
 from so101sim.model import scene_path
+from so101sim.model.build import compile_spec
 from so101sim.motion import LAB_MOTION, run_segments
 from so101sim.sim.simulation import Simulation
 
@@ -163,7 +164,9 @@ def test_a_foreign_entry_is_rebuilt_with_one_warning(cache, caplog, capfd, chang
 @pytest.mark.parametrize("damage", ["truncated", "bit flipped"])
 def test_a_damaged_entry_never_reaches_mujoco(cache, caplog, capfd, damage):
     modelcache.load_or_compile(scene_path(), _compile)
-    physics = modelcache.load_or_compile(scene_path(), _compile, physics_only=True)
+    physics = modelcache.load_or_compile(
+        scene_path(), _compile, physics_only=True, compile_spec=compile_spec
+    )
     for entry in cache.glob("*.mjb"):
         data = bytearray(entry.read_bytes())
         if damage == "truncated":
@@ -174,7 +177,9 @@ def test_a_damaged_entry_never_reaches_mujoco(cache, caplog, capfd, damage):
     capfd.readouterr()
     with caplog.at_level("WARNING", logger="so101sim.model.cache"):
         full = modelcache.load_or_compile(scene_path(), _compile)
-        again = modelcache.load_or_compile(scene_path(), _compile, physics_only=True)
+        again = modelcache.load_or_compile(
+            scene_path(), _compile, physics_only=True, compile_spec=compile_spec
+        )
     assert len([r for r in caplog.records if r.levelname == "WARNING"]) == 2  # one per entry
     assert "digest" in caplog.records[0].getMessage()
     assert capfd.readouterr().err == ""  # no "WARNING: Truncated model file" from MuJoCo
@@ -193,11 +198,15 @@ def test_a_model_that_cannot_be_trimmed_is_not_tried_again(cache, tmp_path, monk
     def compile_cloth():
         return mujoco.MjModel.from_xml_path(str(xml))
 
-    first = modelcache.load_or_compile(xml, compile_cloth, physics_only=True)
+    first = modelcache.load_or_compile(
+        xml, compile_cloth, physics_only=True, compile_spec=compile_spec
+    )
     assert first.nflex == 1  # the full model: a flex reads the mesh trees
     assert len(list(cache.glob(f"*{modelcache.REFUSED_SUFFIX}"))) == 1
     monkeypatch.setattr(modelcache.modeltrim, "physics_only", lambda *a: pytest.fail("tried"))
-    again = modelcache.load_or_compile(xml, compile_cloth, physics_only=True)
+    again = modelcache.load_or_compile(
+        xml, compile_cloth, physics_only=True, compile_spec=compile_spec
+    )
     assert again.nflex == 1
     modelcache.clear()
     assert not list(cache.glob(f"*{modelcache.REFUSED_SUFFIX}"))
@@ -207,7 +216,9 @@ def test_a_swapped_entry_is_caught_digests_included(cache, caplog):
     """Issue 30: swapping ``<key>.mjb`` with ``<key>-physics2.mjb`` (their digests too) made
     load_or_compile return the physics-only model; each entry is bound to its key and kind."""
     full = modelcache.load_or_compile(scene_path(), _compile)
-    physics = modelcache.load_or_compile(scene_path(), _compile, physics_only=True)
+    physics = modelcache.load_or_compile(
+        scene_path(), _compile, physics_only=True, compile_spec=compile_spec
+    )
     assert full.ngeom > physics.ngeom  # the physics-only copy has no visual geoms
     entry = next(p for p in cache.glob("*.mjb") if "-physics" not in p.name)
     other = next(p for p in cache.glob("*.mjb") if "-physics" in p.name)
@@ -218,7 +229,9 @@ def test_a_swapped_entry_is_caught_digests_included(cache, caplog):
         tmp.rename(b)
     with caplog.at_level("WARNING", logger="so101sim.model.cache"):
         again = modelcache.load_or_compile(scene_path(), _compile)
-        again_physics = modelcache.load_or_compile(scene_path(), _compile, physics_only=True)
+        again_physics = modelcache.load_or_compile(
+            scene_path(), _compile, physics_only=True, compile_spec=compile_spec
+        )
     assert (again.ngeom, again_physics.ngeom) == (full.ngeom, physics.ngeom)
     messages = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
     assert len(messages) == 2 and all("another key or kind" in m for m in messages)

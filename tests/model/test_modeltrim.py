@@ -10,6 +10,7 @@ import pytest
 from so101sim.cli.runplan import Outputs, prepare_run
 from so101sim.model import load_model, scene_path
 from so101sim.model import trim as modeltrim
+from so101sim.model.build import compile_spec
 from so101sim.motion import LAB_MOTION, run_segments
 from so101sim.sim.simulation import Simulation
 
@@ -21,7 +22,9 @@ def full():
 
 @pytest.fixture(scope="module")
 def trimmed(full):
-    model = modeltrim.physics_only(mujoco.MjSpec.from_file(str(scene_path())), full)
+    model = modeltrim.physics_only(
+        mujoco.MjSpec.from_file(str(scene_path())), full, compile_spec=compile_spec
+    )
     assert model is not None
     return model
 
@@ -104,7 +107,7 @@ def test_the_physics_is_the_same_before_and_after_contacts(full, trimmed):
 def test_the_shipped_spec_is_left_as_it_was(full):
     spec = mujoco.MjSpec.from_file(str(scene_path()))
     before = spec.to_xml()
-    assert modeltrim.physics_only(spec, full) is not None
+    assert modeltrim.physics_only(spec, full, compile_spec=compile_spec) is not None
     assert spec.to_xml() == before
 
 
@@ -117,7 +120,7 @@ def test_a_model_with_a_flex_keeps_the_full_model():
         """<mujoco><worldbody><flexcomp name="f" type="grid" count="3 3 1" spacing=".1 .1 .1"
         dim="2"/></worldbody></mujoco>"""
     )
-    assert flex.nflex == 1 and modeltrim.physics_only(spec) is None
+    assert flex.nflex == 1 and modeltrim.physics_only(spec, compile_spec=compile_spec) is None
     assert "flex" in modeltrim.why_not(flex)
 
 
@@ -140,14 +143,16 @@ def test_ray_casting_sensors_and_sdf_plugins_keep_the_full_model():
         extra_body='<site name="eye" pos="0 0 0.5" zaxis="0 0 -1"/>',
         sensors='<rangefinder site="eye"/>',
     )
-    assert modeltrim.physics_only(ranged) is None  # rangefinders cast rays at the meshes
+    assert (
+        modeltrim.physics_only(ranged, compile_spec=compile_spec) is None
+    )  # rangefinders cast rays at the meshes
     assert "RANGEFINDER" in modeltrim.why_not(ranged.compile())
     touching = _scene_with(
         extra_body='<site name="pad" pos="0 0 0.5" size="0.01"/>',
         sensors='<framepos objtype="site" objname="pad"/>',
     )
     assert modeltrim.why_not(touching.copy().compile()) is None
-    assert modeltrim.is_physics_only(modeltrim.physics_only(touching))
+    assert modeltrim.is_physics_only(modeltrim.physics_only(touching, compile_spec=compile_spec))
     sdf = _scene_with(
         extension='<extension><plugin plugin="mujoco.sdf.torus"><instance name="torus">'
         '<config key="radius1" value="0.05"/><config key="radius2" value="0.01"/></instance>'
@@ -155,7 +160,10 @@ def test_ray_casting_sensors_and_sdf_plugins_keep_the_full_model():
         extra_body='<body pos="0.3 0 0.3"><freejoint/><geom type="sdf" mesh="torus">'
         '<plugin instance="torus"/></geom></body>',
     )
-    assert modeltrim.physics_only(sdf) is None and modeltrim.why_not(sdf.compile()) is not None
+    assert (
+        modeltrim.physics_only(sdf, compile_spec=compile_spec) is None
+        and modeltrim.why_not(sdf.compile()) is not None
+    )
 
 
 def test_an_unexpected_error_while_trimming_keeps_the_full_model(full, monkeypatch, caplog):
@@ -164,7 +172,12 @@ def test_an_unexpected_error_while_trimming_keeps_the_full_model(full, monkeypat
 
     monkeypatch.setattr(modeltrim, "_hull_vertices", broken)
     with caplog.at_level("DEBUG", logger="so101sim.model.trim"):
-        assert modeltrim.physics_only(mujoco.MjSpec.from_file(str(scene_path())), full) is None
+        assert (
+            modeltrim.physics_only(
+                mujoco.MjSpec.from_file(str(scene_path())), full, compile_spec=compile_spec
+            )
+            is None
+        )
     assert "keeping the full model" in caplog.text
 
 

@@ -42,7 +42,7 @@ def _error(text: str) -> MotionFileError:
 
 GOOD = """\
 description = "test"
-profile = "minimum_jerk"
+shape = "minimum_jerk"
 
 [poses]
 up = { shoulder_lift = 0, elbow_flex = 0 }
@@ -61,7 +61,7 @@ hold = 0.5
 [[steps]]
 move = "left"
 duration = 2.0
-profile = "limited"
+shape = "limited"
 name = "turn"
 
 [[steps]]
@@ -87,7 +87,7 @@ def test_a_motion_file_loads_into_full_pose_steps():
     assert left.target == {**up.target, "shoulder_pan": 45.0, "wrist_roll": 10.0}
     assert grip.target == {**left.target, "gripper": 40.0}
     assert wrist.target == {**grip.target, "wrist_flex": -20.0}
-    assert up.profile == "minimum_jerk" and left.profile == "limited"
+    assert up.shape == "minimum_jerk" and left.shape == "limited"
     assert [s.phase for s in mf.steps] == ["to_up", "hold", "turn", "gripper", "move"]
     assert mf.lines == (11, 15, 18, 24, 28)
 
@@ -139,8 +139,9 @@ LIMIT = default_units().limits_dict()
         ("[[steps]]\nmove = 'zero'\n", 1, "needs a duration"),
         ("[[steps]]\nmove = 'zero'\nhold = 1\nduration = 1\n", 1, "exactly one of"),
         ("[[steps]]\nname = 'x'\n", 1, "exactly one of"),
-        ("[[steps]]\nmove = 'zero'\nduration = 1\nprofile = 'fast'\n", 4, "unknown profile"),
-        ("profile = 'fast'\n[[steps]]\nhold = 1\n", 1, "unknown profile"),
+        ("[[steps]]\nmove = 'zero'\nduration = 1\nshape = 'fast'\n", 4, "unknown shape"),
+        ("shape = 'fast'\n[[steps]]\nhold = 1\n", 1, "unknown shape"),
+        ("profile = 'fast'\n[[steps]]\nhold = 1\n", 1, "unknown profile"),  # the old key
         ("[poses]\nrest = { gripper = 5 }\n[[steps]]\nhold = 1\n", 2, "built in"),
         ("start = 1\n[poses]\nup = { shoulder_lift = 0 }\n", 1, "a pose must be a table"),
         ("[poses]\nup = { shoulder_lift = 0 }\nstart = 1\n[[steps]]\nhold = 1\n", 3, "table"),
@@ -282,7 +283,7 @@ def test_cli_run_reports_a_bad_file_with_its_line(tmp_path, capsys):
 
 def test_cli_run_strict_refuses_a_too_short_limited_move(tmp_path, capsys):
     path = tmp_path / "fast.toml"
-    path.write_text("[[steps]]\nmove = 'zero'\nduration = 0.1\nprofile = 'limited'\n")
+    path.write_text("[[steps]]\nmove = 'zero'\nduration = 0.1\nshape = 'limited'\n")
     assert cli.main(["run", "--headless", "--strict", str(path)]) == 2
     assert "at least" in capsys.readouterr().err
     assert cli.main(["run", "--headless", str(path)]) == 0  # stretched instead
@@ -307,7 +308,7 @@ DEEP_KEY = "[[steps]]\nduration = 1\nmove.elbow_flex." + ".".join(["a"] * 3000) 
         ("[[steps]]\nhold = 1e9\n", 2, "at most 86400 s"),
         ("[[steps]]\nhold = 1e308\n", 2, "at most 86400 s"),
         ("[[steps]]\nhold = 1\n[[steps]]\nmove = 'zero'\nduration = 7200\n", 5, "at most 3600 s"),
-        ("[[steps]]\nmove = 'zero'\nduration = 1e9\nprofile = 'limited'\n", 3, "at most 3600 s"),
+        ("[[steps]]\nmove = 'zero'\nduration = 1e9\nshape = 'limited'\n", 3, "at most 3600 s"),
         ("[[steps]]\ngripper = 50\nduration = 3600.5\n", 3, "at most 3600 s"),
         ("[[steps]]\nhold = 0x" + "f" * 300 + "\n", 2, "302 characters long"),
         ("[[steps]]\nhold = 1" + "0" * 99 + "\n", 2, "at most 86400 s"),  # 100 characters
@@ -460,7 +461,7 @@ def _alarm(seconds: int):
 
 # ---------------------------------------------------------------------------- tip moves
 TIP = """\
-profile = "minimum_jerk"
+shape = "minimum_jerk"
 
 [[steps]]
 move = { tip = [0.20, 0.0, 0.05], pitch = -90 }
@@ -474,18 +475,18 @@ duration = 0.5
 name = "forward"
 move = { tip = [0.25, 0.0, 0.05], pitch = -90, roll = 10, path = "joint" }
 duration = 1
-profile = "limited"
+shape = "limited"
 """
 
 
 def test_a_tip_move_loads_as_a_tip_move_and_the_next_steps_continue_from_its_end():
     mf = _parse(TIP)
     first, grip, forward = mf.steps
-    assert first == Move.to_tip((0.2, 0.0, 0.05), 1.0, pitch=-90.0, profile="minimum_jerk",
+    assert first == Move.to_tip((0.2, 0.0, 0.05), 1.0, pitch=-90.0, shape="minimum_jerk",
                                 phase="to_tip")  # fmt: skip
     assert first.path == "line" and first.roll is None
     assert forward == Move.to_tip((0.25, 0.0, 0.05), 1.0, pitch=-90.0, roll=10.0, path="joint",
-                                  profile="limited", phase="forward")  # fmt: skip
+                                  shape="limited", phase="forward")  # fmt: skip
     assert mf.lines == (3, 7, 11)
     # the gripper step keeps the pose the line really ends on, as the run will command it
     sim = Simulation(initial_pose=mf.start)
@@ -550,10 +551,10 @@ def test_a_line_through_no_reach_or_with_the_limited_profile_is_refused_at_load(
     # the end is reachable, but not the straight line from rest to it (it passes too high)
     err = _error(f"{MOVE}{{ tip = [0.05, 0.0, 0.20], pitch = -90 }}\n")
     assert err.line == 3 and "the tip cannot get there" in err.reason
-    err = _error(f"{MOVE}{{ tip = [0.2, 0.0, 0.05] }}\nprofile = 'limited'\n")
+    err = _error(f"{MOVE}{{ tip = [0.2, 0.0, 0.05] }}\nshape = 'limited'\n")
     assert err.line == 4 and "cannot drive a straight-line tip move" in err.reason
     # the same point in joint space with the limited profile is fine
-    mf = _parse(f"{MOVE}{{ tip = [0.2, 0.0, 0.05], path = 'joint' }}\nprofile = 'limited'\n")
+    mf = _parse(f"{MOVE}{{ tip = [0.2, 0.0, 0.05], path = 'joint' }}\nshape = 'limited'\n")
     assert mf.steps[0].path == "joint"
 
 
@@ -594,9 +595,9 @@ TIP_VALUES = st.one_of(
     st.lists(TIP_VALUES, max_size=4),
     st.sampled_from(["linear", "limited"]),
 )
-def test_any_tip_table_loads_or_raises_motion_file_error(keys, tip, profile):
+def test_any_tip_table_loads_or_raises_motion_file_error(keys, tip, shape):
     body = ", ".join([f"tip = [{', '.join(tip)}]", *(f"{k} = {v}" for k, v in keys.items())])
-    text = f"[[steps]]\nduration = 0.1\nprofile = '{profile}'\nmove = {{ {body} }}\n"
+    text = f"[[steps]]\nduration = 0.1\nshape = '{shape}'\nmove = {{ {body} }}\n"
     try:
         mf = parse_motion(text, path="f.toml")
     except MotionFileError as exc:

@@ -23,7 +23,7 @@ from so101sim.units import STARTING_POSE, ZERO_POSE
 # the issue's case: a tip move, then a 0.05 s `limited` move (its start: where the tip move ends)
 TIP_THEN_LIMITED = [
     Move.to_tip((0.22, 0.0, 0.08), 1.0, pitch=-60),
-    Move(ZERO_POSE, 0.05, profile="limited", phase="snap"),
+    Move(ZERO_POSE, 0.05, shape="limited", phase="snap"),
 ]
 
 
@@ -68,9 +68,9 @@ def test_a_limited_move_after_a_tip_move_is_checked_from_where_the_tip_move_ends
 def test_strict_names_the_first_short_move_after_checking_them_all():
     model = load_model()
     steps = [
-        Move(ZERO_POSE, 0.05, profile="limited", phase="a"),
+        Move(ZERO_POSE, 0.05, shape="limited", phase="a"),
         Hold(0.1),
-        Move(STARTING_POSE, 0.05, profile="limited", phase="b"),
+        Move(STARTING_POSE, 0.05, shape="limited", phase="b"),
     ]
     assert [s.phase for s in plan_segments(model, steps, STARTING_POSE).stretched] == ["a", "b"]
     with pytest.raises(TrajectoryLimitError, match=r"step 1 \(a\).*2 move\(s\) too short"):
@@ -103,7 +103,7 @@ duration = 1.0
 [[steps]]
 move = "zero"
 duration = 0.05
-profile = "limited"
+shape = "limited"
 name = "snap"
 """
 
@@ -124,10 +124,10 @@ def test_run_strict_check_strict_and_a_plain_check_say_the_same_number(tmp_path,
 
 def test_a_limited_tip_move_in_joint_space_is_checked_too():
     model = load_model()
-    steps = [Move.to_tip((0.22, 0.05, 0.08), 0.05, pitch=-60, path="joint", profile="limited")]
+    steps = [Move.to_tip((0.22, 0.05, 0.08), 0.05, pitch=-60, path="joint", shape="limited")]
     [short] = plan_segments(model, steps, STARTING_POSE).stretched
     assert short.index == 0 and short.needed > 0.05
     with pytest.raises(TrajectoryLimitError, match=f"at least {short.needed:.3f} s"):
         plan_segments(model, steps, STARTING_POSE, strict=True)
-    ok = [Move.to_tip((0.22, 0.05, 0.08), 3.0, pitch=-60, path="joint", profile="limited")]
+    ok = [Move.to_tip((0.22, 0.05, 0.08), 3.0, pitch=-60, path="joint", shape="limited")]
     assert plan_segments(model, ok, STARTING_POSE, strict=True).stretched == ()

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import pytest
+from preflight_helpers import floor_motion
 
 from so101sim.model import load_model
 from so101sim.motion import Move
@@ -11,20 +12,6 @@ from so101sim.motion.file import lab_motion_path, load_motion
 from so101sim.preflight import check_motion_file, preflight
 from so101sim.preflight import measure as measure_module
 from so101sim.units import STARTING_POSE
-
-INTO_FLOOR = """\
-profile = "minimum_jerk"
-[poses]
-down = { shoulder_lift = 45, elbow_flex = 45, wrist_flex = 60 }
-[[steps]]
-move = "down"
-duration = 2.0
-[[steps]]
-hold = 0.5
-[[steps]]
-move = { tip = [0.22, 0.05, 0.08], pitch = -60 }
-duration = 1.0
-"""
 
 
 def _both(monkeypatch, run):
@@ -57,8 +44,7 @@ def test_the_lab_motion_gets_the_same_report_stepped_in_blocks(monkeypatch, arm)
 
 
 def test_a_motion_into_the_floor_gets_the_same_contacts_stepped_in_blocks(monkeypatch, tmp_path):
-    path = tmp_path / "floor.toml"
-    path.write_text(INTO_FLOOR)
+    path = floor_motion(tmp_path, tip_line=True)
     fast, blocks, slow, per_step = _both(monkeypatch, lambda: check_motion_file(path))
     assert fast == slow
     assert not fast.passed

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import pytest
+from preflight_helpers import floor_motion
 
 from so101sim import cli
 from so101sim.errors import SettingError
@@ -21,18 +22,6 @@ from so101sim.preflight import (
 from so101sim.preflight.judge import EffortFinding, TrackingFinding, judge
 from so101sim.preflight.measure import JointCheck, Measurements, StepCheck
 from so101sim.units import JOINT_NAMES, STARTING_POSE
-
-# The gripper tipped down into the floor in front of the arm.
-INTO_FLOOR = """\
-profile = "minimum_jerk"
-[poses]
-down = { shoulder_lift = 45, elbow_flex = 45, wrist_flex = 60 }
-[[steps]]
-move = "down"
-duration = 2.0
-[[steps]]
-hold = 0.5
-"""
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +56,7 @@ def test_the_linear_profile_spikes_but_smooth_profiles_do_not(lab_report):
     ideal = check_motion_file(lab_motion_path(), arm="official")
     peaks = [j.peak_effort for s in ideal.steps for j in s.joints.values()]
     assert max(peaks) > th.max_effort  # the lab's straight lines saturate for a few ms
-    assert any("smooth profile" in n for n in ideal.notes)
+    assert any("smooth shape" in n for n in ideal.notes)
     peaks = [j.peak_effort for s in lab_report.steps for j in s.joints.values()]
     assert 0.2 < max(peaks) < 0.5 and not lab_report.notes
     smooth = preflight(
@@ -82,8 +71,7 @@ def test_the_linear_profile_spikes_but_smooth_profiles_do_not(lab_report):
 
 
 def test_driving_into_the_floor_fails_with_the_contact(tmp_path):
-    path = tmp_path / "floor.toml"
-    path.write_text(INTO_FLOOR)
+    path = floor_motion(tmp_path)
     report = check_motion_file(path)
     assert not report.passed
     contacts = {(c.body1, c.body2) for s in report.steps for c in s.contacts}
@@ -95,8 +83,7 @@ def test_a_target_within_the_margin_of_a_limit_fails(tmp_path):
     hi = default_units().limits_dict()["shoulder_pan"][1]
     path = tmp_path / "limit.toml"
     path.write_text(
-        f"[[steps]]\nmove = {{ shoulder_pan = {hi - 0.5!r} }}\nduration = 2.0\n"
-        'profile = "limited"\n'
+        f'[[steps]]\nmove = {{ shoulder_pan = {hi - 0.5!r} }}\nduration = 2.0\nshape = "limited"\n'
     )
     report = check_motion_file(path)
     assert not report.passed
@@ -162,7 +149,7 @@ def test_thresholds_are_applied(lab_report):
 
 
 def test_stretched_limited_moves_are_noted_or_refused():
-    steps = [Move({**STARTING_POSE, "shoulder_pan": 30.0}, 0.05, profile="limited")]
+    steps = [Move({**STARTING_POSE, "shoulder_pan": 30.0}, 0.05, shape="limited")]
     report = preflight(steps)
     assert any("stretched" in n for n in report.notes)
     from so101sim.errors import TrajectoryLimitError
@@ -175,8 +162,7 @@ def test_the_table_then_pass_or_fail(lab_report, tmp_path):
     text = format_report(lab_report)
     assert text.splitlines()[-1] == "PASS"
     assert all(name in text for name in JOINT_NAMES)
-    path = tmp_path / "floor.toml"
-    path.write_text(INTO_FLOOR)
+    path = floor_motion(tmp_path)
     failed = format_report(check_motion_file(path))
     assert "FAIL" in failed and "contact:" in failed
 
@@ -185,8 +171,7 @@ def test_cli_check_exit_codes_and_json(tmp_path, capsys):
     assert cli.main(["check", str(lab_motion_path())]) == 0
     assert "PASS" in capsys.readouterr().out
 
-    path = tmp_path / "floor.toml"
-    path.write_text(INTO_FLOOR)
+    path = floor_motion(tmp_path)
     assert cli.main(["check", str(path), "--json"]) == 1
     data = json.loads(capsys.readouterr().out)
     assert data["passed"] is False and data["failures"]
@@ -223,7 +208,7 @@ def test_check_reports_how_far_the_tip_strayed_from_a_straight_line():
     from so101sim.motion import Move
     from so101sim.preflight import format_report, preflight
 
-    steps = [Move.to_tip((0.22, 0.05, 0.08), 2.0, pitch=-60, profile="minimum_jerk")]
+    steps = [Move.to_tip((0.22, 0.05, 0.08), 2.0, pitch=-60, shape="minimum_jerk")]
     report = preflight(steps, start=STARTING_POSE)
     commanded, measured = report.steps[0].line_deviation_mm
     assert commanded <= 2.0 and 0 <= measured < 20.0

@@ -281,7 +281,7 @@ def test_the_summary_says_per_check_how_many_failed_the_worst_and_what_to_change
         else:
             assert f"PASS in all {n} variants" in line
     assert "what to change: a slower move" in text and "less payload" in text
-    assert 'profile = "minimum_jerk"' in text
+    assert 'shape = "minimum_jerk"' in text
     assert "payload " in text and "zero offsets" in text  # the worst variant's parameters
     assert "thresholds: limit margin 1° (body joints)" in text
     # the worst tracking error of a variant that failed on other checks is said as such

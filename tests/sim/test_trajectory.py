@@ -135,10 +135,10 @@ def test_tighter_limits_give_longer_moves():
 
 def test_check_limited_moves_before_a_run():
     steps = [
-        Move(ZERO_POSE, 0.2, profile="limited", phase="fast"),
+        Move(ZERO_POSE, 0.2, shape="limited", phase="fast"),
         Hold(1.0),
-        Move(STARTING_POSE, 3.0, profile="limited", phase="slow"),
-        Move(ZERO_POSE, 0.2, profile="linear", phase="linear"),
+        Move(STARTING_POSE, 3.0, shape="limited", phase="slow"),
+        Move(ZERO_POSE, 0.2, shape="linear", phase="linear"),
     ]
     short = check_limited_moves(START, steps, DT)
     assert [(s.index, s.phase) for s in short] == [(0, "fast")]
@@ -151,7 +151,7 @@ def test_a_profile_object_can_be_given_to_a_move():
     prof = LimitedProfile(strict=True)
     assert get_profile(prof) is prof
     sim = Simulation()
-    r = run_motion(sim.model, sim.data, [Move(ZERO_POSE, 1.5, profile=prof)])
+    r = run_motion(sim.model, sim.data, [Move(ZERO_POSE, 1.5, shape=prof)])
     assert r.segments[0].steps == 750
     assert r.segments[0].target == pytest.approx(ZERO_POSE)
 
@@ -172,14 +172,14 @@ def test_strict_refusal_quotes_a_duration_that_passes():
     t_min = prof.minimum_duration(START, zero)
     needed = math.ceil(t_min / DT) * DT
     assert needed > t_min  # t_min is not a whole number of steps, so rounding matters
-    too_short = Move(ZERO_POSE, needed - DT, profile="limited")
+    too_short = Move(ZERO_POSE, needed - DT, shape="limited")
     with pytest.raises(TrajectoryLimitError, match=f"need at least {needed:.3f} s"):
         check_limited_moves(START, [too_short], DT, strict=True)
     [short] = check_limited_moves(START, [too_short], DT)
     assert short.needed == pytest.approx(needed)
     # A request of exactly the quoted figure passes both the check and the strict profile.
     quoted = float(f"{needed:.3f}")
-    assert check_limited_moves(START, [Move(ZERO_POSE, quoted, profile="limited")], DT) == []
+    assert check_limited_moves(START, [Move(ZERO_POSE, quoted, shape="limited")], DT) == []
     n = round(quoted / DT)
     out = LimitedProfile(strict=True)(START, zero, n, DT)
     assert len(out) == n

@@ -14,7 +14,6 @@ import contextlib
 import logging
 import math
 import os
-import re
 import signal
 import sys
 import threading
@@ -23,6 +22,7 @@ from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 from ..errors import So101SimError
+from ..validation import escape_controls  # every printer escapes: see say()
 
 if TYPE_CHECKING:
     from tqdm import tqdm
@@ -33,23 +33,6 @@ if TYPE_CHECKING:
 
 
 # ---------------------------------------------------------------------------- printing
-_CONTROLS = re.compile(
-    "[\x00-\x08\x0b-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028\u2029\u202a-\u202e\u2066-\u2069]"
-)
-_CONTROLS_AND_LINES = re.compile(_CONTROLS.pattern[:-1] + "\t\n]")
-
-
-def escape_controls(text: str, *, lines: bool = True) -> str:
-    """``text`` with every control character written as an escape (``\\x1b`` → ``\\u001b``):
-    the terminal shows what a file or a user wrote and never acts on it (a step named
-    ``"\\u001b[1A\\u001b[2KPASS"`` would rewrite the verdict line). Escaped: C0 and C1 controls,
-    DEL, and the bidirectional marks and overrides; kept: newline and tab, unless ``lines`` is
-    False (a single name, e.g. a step's, stays on its line). Every printer of the command line
-    goes through it (:func:`say`, the log lines, the error lines)."""
-    pattern = _CONTROLS if lines else _CONTROLS_AND_LINES
-    return pattern.sub(lambda m: f"\\u{ord(m.group()):04x}", text)
-
-
 def say(
     *values: object, sep: str = " ", end: str = "\n", file: Any = None, flush: bool = False
 ) -> None:

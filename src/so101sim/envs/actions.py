@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal, get_args
 
 import mujoco
 import numpy as np
@@ -23,7 +24,9 @@ from ..kinematics import for_model, solve_ik
 from ..units import GRIPPER_INDEX, ArmUnits
 from ..validation import check_choice, check_range, shown
 
-CONTROL_MODES = ("joint", "joint_delta", "ee_delta")
+ControlMode = Literal["joint", "joint_delta", "ee_delta"]
+"""How an action is read: joint targets, joint steps, or end-effector steps."""
+CONTROL_MODES: tuple[str, ...] = get_args(ControlMode)
 EE_WORKSPACE_M = ((-0.1, 0.45), (-0.4, 0.4), (0.0, 0.45))
 """Where an ``ee_delta`` tip target is kept (x, y, z ranges in metres, base frame)."""
 PITCH_RANGE_DEG = (-180.0, 180.0)
@@ -33,7 +36,7 @@ PITCH_RANGE_DEG = (-180.0, 180.0)
 class ControlSettings:
     """The control mode and its step limits (see the module's text)."""
 
-    mode: str = "joint"
+    mode: ControlMode = "joint"
     max_delta: float = 10.0
     ee_step: float = 0.02
     ee_turn: float = 10.0

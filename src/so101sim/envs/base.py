@@ -26,7 +26,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal, get_args
 
 import gymnasium as gym
 import mujoco
@@ -59,16 +59,20 @@ from ..sim.simulation import Simulation
 from ..sim.stepping import advance_unobserved
 from ..units import STARTING_POSE, Pose
 from ..validation import check_choice, check_range
-from .actions import ActionMap, ControlSettings
+from .actions import ActionMap, ControlMode, ControlSettings
 from .grasp import limit_gripper
 from .observations import Observations, check_size
 from .scene_state import SceneState
 
-REWARD_MODES = ("dense", "sparse")
+RewardMode = Literal["dense", "sparse"]
+"""The reward: ``dense`` (shaped, 0..1) or ``sparse`` (1.0 on success, else 0.0)."""
+REWARD_MODES: tuple[str, ...] = get_args(RewardMode)
 _ADVICE = (
     "Expected stable physics: reset the environment, and check the actions and the scene's masses"
 )
-RENDER_MODES = ("human", "rgb_array")
+RenderMode = Literal["human", "rgb_array"]
+"""Gymnasium's render modes the tasks offer: a viewer window, or frames as arrays."""
+RENDER_MODES: tuple[str, ...] = get_args(RenderMode)
 
 
 @dataclass(frozen=True)
@@ -91,10 +95,10 @@ class So101TaskEnv(Observations, SceneState, gym.Env):
 
     def __init__(
         self,
-        render_mode: str | None = None,
+        render_mode: RenderMode | None = None,
         *,
-        control: str = "joint",
-        reward: str = "dense",
+        control: ControlMode = "joint",
+        reward: RewardMode = "dense",
         cameras: Sequence[CameraLike] = (),
         image_size: tuple[int, int] = (224, 224),
         object_state: bool = True,

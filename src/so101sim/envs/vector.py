@@ -4,21 +4,24 @@ worlds in this process, :mod:`.worlds`; on a GPU, :mod:`.warp`; over Ray actors,
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal, get_args
 
 from gymnasium.vector import VectorEnv
 
 from ..validation import check_choice
 from .worlds import MAX_WORLDS, So101VectorEnv
 
-BACKENDS = ("cpu", "warp", "ray")
+Backend = Literal["cpu", "warp", "ray"]
+"""Where an environment's worlds step: MuJoCo on the CPU's cores, MuJoCo Warp on a GPU, or
+Ray actors."""
+BACKENDS: tuple[str, ...] = get_args(Backend)
 
 
 def make_vec(
     task: str,
     num_envs: int = 1,
     *,
-    backend: str = "cpu",
+    backend: Backend = "cpu",
     nthread: int | None = None,
     **env_kwargs: Any,
 ) -> VectorEnv:
@@ -48,4 +51,4 @@ def make_vec(
     return So101VectorEnv(task, num_envs, nthread=nthread, **env_kwargs)
 
 
-__all__ = ["BACKENDS", "MAX_WORLDS", "So101VectorEnv", "make_vec"]
+__all__ = ["BACKENDS", "MAX_WORLDS", "Backend", "So101VectorEnv", "make_vec"]

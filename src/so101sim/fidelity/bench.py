@@ -26,6 +26,7 @@ from ..model.arm import (
     fill_delay_history,
     load_profile,
 )
+from ..model.build import build, made_recipe
 from ..model.servo import NOSLIP_ITERATIONS
 from ..sim.stepping import advance_unobserved, state_size
 from ..validation import check_count, check_range
@@ -125,7 +126,8 @@ class BenchBatch:
             apply_servo(spec, f"servo{i}", act, delayed, self.timestep)
         if self.profile.static_friction:  # as apply_profile does for the arm
             spec.option.noslip_iterations = NOSLIP_ITERATIONS
-        self.model = spec.compile()
+        # the model builder compiles it (a model made by code: built each time, never cached)
+        self.model = build(made_recipe("servo bench", lambda: spec, arm=self.profile))
         self.data = mujoco.MjData(self.model)
         self.servos = servos
         self.set_servo(servos)

@@ -3,10 +3,15 @@ profile, what is added to it, physics-only or full) and :func:`build` makes it, 
 
 Everything in so101sim that compiles a model goes through :func:`build`: ``load_model``, the
 scenes (a table, objects, cameras: one :class:`Addition`), the preflight's sensor model and the
-contact twin (sensors: an :class:`Addition`), the fit's replayer (a profile). The steps are
-always the same, written once here:
+contact twin (sensors: an :class:`Addition`), the fit's replayer (a profile), the recorder's
+draft meshes (an :class:`Addition`, made each time: ``keep=False``) and the servo bench (a
+model made by code, not read from a file: a :class:`MadeSpec`). The steps are always the same,
+written once here:
 
-    file → MjSpec → arm profile (``apply_profile``) → additions → compile → caches
+    file (or MadeSpec) → MjSpec → arm profile (``apply_profile``) → additions → compile → caches
+
+:func:`compile_spec` is the one call of MuJoCo's compiler in so101sim (the physics-only trim
+gets it as an argument; ``tests/test_architecture.py`` fails on a compile anywhere else).
 
 * **Caches.** A recipe whose additions all have a ``key`` is compiled once per process (the
   same :class:`mujoco.MjModel` is returned again: treat it as read-only) and once per content
@@ -55,14 +60,26 @@ class Addition:
 
 
 @dataclass(frozen=True)
+class MadeSpec:
+    """A model made by code rather than read from a file (the servo bench's pendulums):
+    ``name`` says what it is in messages, ``make`` returns its MjSpec. Such a recipe is made
+    each time it is built (never cached) and is not the SO-101 arm (its joints are not
+    checked)."""
+
+    name: str
+    make: Callable[[], mujoco.MjSpec] = field(compare=False, repr=False)
+
+
+@dataclass(frozen=True)
 class ModelRecipe:
-    """What model to make: ``file`` (an MJCF file, resolved), the arm profile ``arm`` (the
+    """What model to make: ``file`` (an MJCF file, resolved; or a :class:`MadeSpec`, a model
+    made by code: :func:`made_recipe`), the arm profile ``arm`` (the
     servos' actuator model; ``arm_key`` is ``""`` for the file's own actuators), the
     ``additions`` (scene, cameras, sensors) and whether it is the ``physics_only`` model (no
     visual geoms, convex collision meshes: :mod:`so101sim.model.trim`); ``keep=False``: made
     each time it is asked for, in neither cache (a one-off profile such as a fit's)."""
 
-    file: Path
+    file: Path | MadeSpec
     arm: ArmProfile = field(compare=False)
     arm_key: str = ""
     additions: tuple[Addition, ...] = ()
@@ -71,7 +88,20 @@ class ModelRecipe:
 
     @property
     def cacheable(self) -> bool:
-        return self.keep and all(a.key is not None for a in self.additions)
+        made = isinstance(self.file, MadeSpec)
+        return self.keep and not made and all(a.key is not None for a in self.additions)
+
+    @property
+    def path(self) -> Path | None:
+        """The MJCF file of this recipe; None for a model made by code (:class:`MadeSpec`)."""
+        return self.file if isinstance(self.file, Path) else None
+
+    @property
+    def what(self) -> str:
+        """This recipe's source in words, for messages."""
+        if isinstance(self.file, MadeSpec):
+            return f"the {self.file.name} model"
+        return f"model file {str(self.file)!r}"
 
     def with_additions(self, *more: Addition) -> ModelRecipe:
         """This recipe with ``more`` added after its own additions."""
@@ -80,9 +110,12 @@ class ModelRecipe:
     def spec(self) -> mujoco.MjSpec:
         """A fresh MjSpec of this recipe (the file, the profile, the additions)."""
         try:
-            spec = mujoco.MjSpec.from_file(str(self.file))
+            if isinstance(self.file, MadeSpec):
+                spec = self.file.make()
+            else:
+                spec = mujoco.MjSpec.from_file(str(self.file))
         except (ValueError, mujoco.FatalError) as exc:
-            raise ModelError(f"model file {str(self.file)!r} does not compile: {exc}") from exc
+            raise ModelError(f"{self.what} does not compile: {exc}") from exc
         if self.arm_key:  # "": the file's own actuators, as they are
             apply_profile(spec, self.arm)
         for addition in self.additions:
@@ -113,6 +146,21 @@ def recipe(
         p = check_input_file(file, "model file", expected=expected, error=ModelError)
     key = profile_key(prof)
     return ModelRecipe(p.resolve(), prof, key, tuple(additions), physics_only, keep)
+
+
+def made_recipe(
+    name: str, make: Callable[[], mujoco.MjSpec], *, arm: ArmLike = OFFICIAL
+) -> ModelRecipe:
+    """The recipe of a model made by code (:class:`MadeSpec`): ``make`` builds its whole spec
+    (``arm``: the profile its maker applied itself, for :func:`recipe_of`; the builder applies
+    none); built each time, in no cache."""
+    return ModelRecipe(MadeSpec(name, make), load_profile(arm), "", (), False, keep=False)
+
+
+def compile_spec(spec: mujoco.MjSpec) -> mujoco.MjModel:
+    """Compile ``spec``: the one call of MuJoCo's compiler in so101sim (every model is built
+    by :func:`build`; the physics-only trim gets this function from it)."""
+    return spec.compile()
 
 
 _lock = threading.Lock()  # guards the tables below; never held while compiling
@@ -158,27 +206,33 @@ def build(r: ModelRecipe) -> mujoco.MjModel:
 
 
 def _compile(r: ModelRecipe, *, cached: bool = False) -> mujoco.MjModel:
-    plain = not r.arm_key and not r.additions
+    plain = r.path is not None and not r.arm_key and not r.additions
 
     def compile_fn() -> mujoco.MjModel:
         if plain:  # the file exactly as MuJoCo's own loader compiles it
             return mujoco.MjModel.from_xml_path(str(r.file))
-        return r.spec().compile()
+        return compile_spec(r.spec())
 
     variant = r.arm_key + "".join(f"+{a.key}" for a in r.additions)
     try:
         if cached:
             model = load_or_compile(
-                r.file, compile_fn, variant=variant, physics_only=r.physics_only, spec_fn=r.spec
+                r.file,  # type: ignore[arg-type]  # a cached recipe has a file (cacheable)
+                compile_fn,
+                variant=variant,
+                physics_only=r.physics_only,
+                spec_fn=r.spec,
+                compile_spec=compile_spec,
             )
         else:
             model = compile_fn()
     except So101SimError:  # an addition's own error (a camera given twice) says it best
         raise
     except (ValueError, mujoco.FatalError) as exc:
-        raise ModelError(f"model file {str(r.file)!r} does not compile: {exc}") from exc
-    arm_index(model)  # fail now, not at the first command, if joints are missing
-    log.debug("built %s with arm profile %s (nq=%d)", r.file, r.arm.name, model.nq)
+        raise ModelError(f"{r.what} does not compile: {exc}") from exc
+    if r.path is not None:  # the arm (a MadeSpec, the servo bench, is not)
+        arm_index(model)  # fail now, not at the first command, if joints are missing
+    log.debug("built %s with arm profile %s (nq=%d)", r.what, r.arm.name, model.nq)
     return model
 
 
@@ -226,6 +280,8 @@ def recognise(model: mujoco.MjModel) -> ModelRecipe | None:
     shipped = recipe(arm=OFFICIAL)
     candidates = [(shipped, build(shipped)), *built_models()]
     for r, built in candidates:
+        if r.path is None:
+            continue
         if not r.additions and not r.physics_only and _equal(model, built):
             return r
     return None
@@ -261,10 +317,13 @@ def servo_model(model: mujoco.MjModel | None = None, arm: ArmLike = None) -> str
 __all__ = [
     "Addition",
     "ArmLike",
+    "MadeSpec",
     "ModelRecipe",
     "SpecEdit",
     "build",
     "built_models",
+    "compile_spec",
+    "made_recipe",
     "model_spec",
     "recipe",
     "recipe_of",

@@ -49,6 +49,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from ..errors import SettingError
 from . import trim as modeltrim
 
 log = logging.getLogger(__name__)
@@ -259,6 +260,7 @@ def load_or_compile(
     variant: str = "",
     physics_only: bool = False,
     spec_fn: Callable[[], mujoco.MjSpec] | None = None,
+    compile_spec: Callable[[mujoco.MjSpec], mujoco.MjModel] | None = None,
 ) -> mujoco.MjModel:
     """The model compiled from ``path``: from the cache when an entry for its current content
     exists, else ``compile_fn()`` (then saved to the cache when possible).
@@ -267,14 +269,24 @@ def load_or_compile(
     (:func:`so101sim.model.trim.physics_only`: the same physics, about a quarter of the
     memory), kept as its own entry; the full model when the cache is off or unwritable or
     the model cannot be trimmed. ``spec_fn``: the spec ``compile_fn`` compiles (the physics-only
-    model is trimmed from it; default: the file's, e.g. an arm profile's spec otherwise)."""
+    model is trimmed from it; default: the file's, e.g. an arm profile's spec otherwise).
+    ``compile_spec``: how the physics-only model is compiled (the model builder's
+    :func:`~so101sim.model.build.compile_spec`); needed with ``physics_only``.
+
+    Raises:
+        SettingError: ``physics_only`` without ``compile_spec``."""
     if not enabled():
         return compile_fn()
     key = key_for(path, variant)
     if key is None:
         return compile_fn()
     if physics_only:
-        return _physics_only(path, compile_fn, variant, key, spec_fn)
+        if compile_spec is None:
+            raise SettingError(
+                "load_or_compile(physics_only=True) needs compile_spec; expected the model "
+                "builder's so101sim.model.build.compile_spec"
+            )
+        return _physics_only(path, compile_fn, variant, key, spec_fn, compile_spec)
     entry = cache_dir() / f"{key}{ENTRY_SUFFIX}"
     model = _read(entry, path, gains=_ARM_KEY not in variant)
     if model is not None:
@@ -294,7 +306,8 @@ def _physics_only(
     compile_fn: Callable[[], mujoco.MjModel],
     variant: str,
     key: str,
-    spec_fn: Callable[[], mujoco.MjSpec] | None = None,
+    spec_fn: Callable[[], mujoco.MjSpec] | None,
+    compile_spec: Callable[[mujoco.MjSpec], mujoco.MjModel],
 ) -> mujoco.MjModel:
     name = f"{key}-physics{modeltrim.VERSION}"
     entry = cache_dir() / f"{name}{ENTRY_SUFFIX}"
@@ -311,7 +324,7 @@ def _physics_only(
     except (ValueError, OSError, mujoco.FatalError) as exc:
         log.debug("model cache: cannot read %s as a spec (%s)", path, exc)
         return full
-    trimmed = modeltrim.physics_only(spec, full)
+    trimmed = modeltrim.physics_only(spec, full, compile_spec=compile_spec)
     try:
         if trimmed is None:
             _write_with(refused, lambda tmp: Path(tmp).write_bytes(b""))

@@ -66,11 +66,11 @@ def loaded_models() -> list[tuple[Path, mujoco.MjModel]]:
     """``(file, model)`` for every full model :func:`load_model` (or another caller of the
     model builder) has compiled and cached in this process (a physics-only model has nothing
     to draw)."""
-    return [(r.file, m) for r, m in built_models() if not r.physics_only]
+    return [(r.path, m) for r, m in built_models() if not r.physics_only and r.path is not None]
 
 
 def model_source(model: mujoco.MjModel) -> Path | None:
     """The MJCF file ``model`` was compiled from by :func:`load_model` (the model builder), or
     None if it was built another way (or is a copy)."""
     r = recipe_of(model)
-    return r.file if r is not None else None
+    return r.path if r is not None else None

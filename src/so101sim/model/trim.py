@@ -30,6 +30,7 @@ are gone. so101sim's renderers draw the full model of the same file instead.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -119,17 +120,24 @@ def _differences(full: mujoco.MjModel, trimmed: mujoco.MjModel) -> list[str]:
     return out
 
 
-def physics_only(spec: mujoco.MjSpec, full: mujoco.MjModel | None = None) -> mujoco.MjModel | None:
+def physics_only(
+    spec: mujoco.MjSpec,
+    full: mujoco.MjModel | None = None,
+    *,
+    compile_spec: Callable[[mujoco.MjSpec], mujoco.MjModel],
+) -> mujoco.MjModel | None:
     """The physics-only model of ``spec`` (unchanged: a copy is edited), whose full compiled
-    model is ``full`` (compiled here when None); None when the model may read what is dropped
-    (:func:`why_not`) or the copy's physics would differ (the reason is logged at DEBUG)."""
+    model is ``full`` (compiled when None); None when the model may read what is dropped
+    (:func:`why_not`) or the copy's physics would differ (the reason is logged at DEBUG).
+    ``compile_spec``: the model builder's compile (:func:`so101sim.model.build.compile_spec`,
+    the one place so101sim compiles a model)."""
     try:
         if full is None:
-            full = spec.copy().compile()
+            full = compile_spec(spec.copy())
         reason = why_not(full)
         if reason is not None:
             raise ValueError(reason)
-        trimmed = _edited(spec, full).compile()
+        trimmed = compile_spec(_edited(spec, full))
         differ = _differences(full, trimmed)
         if differ:
             raise ValueError(f"{', '.join(differ)} would differ")

@@ -5,7 +5,7 @@ A motion file names poses in the arm's units and lists steps::
     description = "Wave hello"   # optional
     units = "deg"                # optional: body joints in "deg" (default) or "rad";
                                  # the gripper is always 0–100 (0 closed, 100 open)
-    profile = "minimum_jerk"     # optional: the moves' default profile (default "linear")
+    shape = "minimum_jerk"       # optional: the moves' default shape (default "linear")
     start = "rest"               # optional: the pose the arm starts in, at rest (default "rest")
 
     [poses]
@@ -16,7 +16,7 @@ A motion file names poses in the arm's units and lists steps::
     [[steps]]
     move = "up"                  # a pose name, or an inline pose: move = { wrist_flex = 30 }
     duration = 2.0               # seconds, > 0
-    profile = "limited"          # optional: "linear" | "minimum_jerk" | "limited"
+    shape = "limited"            # optional: "linear" | "minimum_jerk" | "limited"
     name = "raise"               # optional: the phase's name in reports
 
     [[steps]]
@@ -46,10 +46,11 @@ are not numbers > 0 or are too long (a move at most an hour,
 only (not a device such as ``/dev/zero`` or a pipe), and refuses data nested more than 32
 levels deep before :mod:`tomllib` sees it. Joint values are checked by the units module as the
 API checks them: a value within :data:`~so101sim.units.LIMIT_TOLERANCE` past a limit is
-clipped onto it; durations and profile names by :mod:`so101sim.validation`. Line numbers and
+clipped onto it; durations and shape names by :mod:`so101sim.validation`. Line numbers and
 the bounded reading come from :mod:`so101sim.motion.lines`. Tip moves are checked and
 planned (in full, from the target before them: an unreachable point is an error with its line)
-by :mod:`so101sim.motion.tip`.
+by :mod:`so101sim.motion.tip`. ``profile``, the old name of ``shape``, is still read (one
+logged warning per file) for one release.
 
 The loader (:class:`_Loader`) reads the steps; the file's settings and poses, and the errors
 at a key's line, are read by :class:`so101sim.motion.reader.FileReader`, which it builds on.
@@ -79,7 +80,7 @@ from ..units import (
     JOINT_NAMES,
     ArmUnits,
 )
-from ..validation import MAX_DURATION_S
+from ..validation import MAX_DURATION_S, check_name
 from .lines import (
     MAX_FILE_BYTES,
     KeyLines,
@@ -97,13 +98,14 @@ from .tip import (
     unreachable_reason,
 )
 
-TOP_KEYS = ("description", "units", "profile", "start", "poses", "steps", "variants")
+TOP_KEYS = ("description", "units", "shape", "profile", "start", "poses", "steps", "variants")
 # "variants": the ranges of `so101sim check --variants`, read by so101sim.preflight.robust
 STEP_KEYS = {
-    "move": ("move", "duration", "profile", "name"),
+    "move": ("move", "duration", "shape", "profile", "name"),
     "hold": ("hold", "name"),
-    "gripper": ("gripper", "duration", "profile", "name"),
+    "gripper": ("gripper", "duration", "shape", "profile", "name"),
 }
+# "profile": the old name of "shape", read for one release (FileReader.shape)
 
 
 def lab_motion_path() -> Path:
@@ -145,11 +147,12 @@ class _Loader(FileReader):
         self.check_keys(data, TOP_KEYS, (), "the motion file")
         description = self.description(data.get("description", ""))
         self.radians = self.units_name(data.get("units", "deg")) == "rad"
-        self.default_profile = self.profile(data.get("profile", "linear"), ("profile",))
+        self.default_shape = self.shape(data, (), "linear")
         poses = self.poses(data.get("poses", {}))
         self.known.update(poses)
         start = self.start(data.get("start", "rest"))
         steps = self.steps(data, start)
+        self.warn_old_key()
         return MotionFile(
             path=self.path,
             start=start,
@@ -180,7 +183,7 @@ class _Loader(FileReader):
         """Step ``i`` (0-based) from the target ``current``, and the target after it."""
         where = ("steps", i)
         kind = self.step_kind(i, raw, where)
-        name = self.step_name(raw, where)
+        name = self.step_name(i, raw, where)
         if kind == "hold":
             d = self.duration(raw["hold"], (*where, "hold"), f"step {i + 1} hold", MAX_DURATION_S)
             return Hold(d, phase=name or "hold"), current
@@ -188,15 +191,16 @@ class _Loader(FileReader):
             raise self.fail(where, f"step {i + 1} ({kind}) needs a duration in seconds")
         what = f"step {i + 1} duration"
         d = self.duration(raw["duration"], (*where, "duration"), what, MAX_MOVE_DURATION_S)
-        profile = self.profile(raw.get("profile", self.default_profile), (*where, "profile"))
+        shape = self.shape(raw, where, self.default_shape)
+        self.shape_key = "profile" if "profile" in raw else "shape"  # for a tip move's error
         if kind == "move" and is_tip_move(raw["move"]):
-            move, end = self.tip_move(raw["move"], where, d, profile, name or "to_tip", current)
+            move, end = self.tip_move(raw["move"], where, d, shape, name or "to_tip", current)
             if self.planner.last is not None:
                 self.tip_plans[i] = self.planner.last
             return move, end
         target, label = self.target(kind, raw[kind], current, (*where, kind))
         pose = self.units.array_to_pose(target)
-        return Move(pose, d, profile=profile, phase=name or label), target
+        return Move(pose, d, shape=shape, phase=name or label), target
 
     def step_kind(self, i: int, raw: Any, where: Where) -> str:
         """``"move"``, ``"hold"`` or ``"gripper"``, once the step's keys are checked."""
@@ -212,10 +216,15 @@ class _Loader(FileReader):
         self.check_keys(raw, STEP_KEYS[kinds[0]], where, f"a {kinds[0]} step")
         return kinds[0]
 
-    def step_name(self, raw: Mapping[str, Any], where: Where) -> str | None:
+    def step_name(self, i: int, raw: Mapping[str, Any], where: Where) -> str | None:
+        """The step's ``name``: a string on one line (no control character: it is printed in
+        every report, :func:`so101sim.validation.check_name`), or None."""
         name = raw.get("name")
         if name is not None and not isinstance(name, str):
             raise self.fail((*where, "name"), f"name must be a string, got {show(name)}")
+        if name is not None:
+            with self.reasons((*where, "name")):
+                check_name(name, f"step {i + 1} name")
         return name
 
     def tip_move(
@@ -223,7 +232,7 @@ class _Loader(FileReader):
         value: Mapping[str, Any],
         where: Where,
         duration: float,
-        profile: str,
+        shape: str,
         phase: str,
         current: np.ndarray,
     ) -> tuple[Move, np.ndarray]:
@@ -234,13 +243,13 @@ class _Loader(FileReader):
         for key, raw in value.items():
             with self.reasons((*where, key)):
                 checked[key] = check_tip_value(key, raw)
-        move = TipTarget(**checked).move(duration, profile, phase)
+        move = TipTarget(**checked).move(duration, shape, phase)
         try:
             return move, self.planner.end(move, current)
         except UnreachableError as exc:
             raise self.fail((*where, "tip"), unreachable_reason(exc)) from None
-        except SettingError as exc:  # a profile a straight line cannot follow
-            raise self.fail((*where[:-1], "profile"), str(exc)) from None
+        except SettingError as exc:  # a shape a straight line cannot follow
+            raise self.fail((*where[:-1], self.shape_key), str(exc)) from None
 
     def target(
         self, kind: str, value: Any, current: np.ndarray, where: Where

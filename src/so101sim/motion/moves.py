@@ -4,29 +4,70 @@ the lab's motion and a run's result (:class:`RunResult`). No stepping and no pla
 
 from __future__ import annotations
 
+import sys
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
-from ..sim.profiles import Profile
+from ..sim.moveplan import Shape
 from ..sim.simulation import SegmentResult
 from ..units import STARTING_POSE, ZERO_POSE, Pose
 
+_RENAMED = (
+    "Move's profile is deprecated and goes in the next release; use shape (e.g. "
+    'Move(pose, 2.0, shape="minimum_jerk")): "profile" names the arm profile, the servos\' model'
+)
 
-@dataclass(frozen=True)
+
+@dataclass(frozen=True, init=False)
 class Move:
-    """Move to ``target`` (a pose) over ``duration`` seconds with ``profile``; or, with
+    """Move to ``target`` (a pose) over ``duration`` seconds with ``shape`` (``"linear"``,
+    ``"minimum_jerk"``, ``"limited"`` or a function, :mod:`so101sim.sim.profiles`); or, with
     ``tip`` = (x, y, z) metres and no target, move the gripper's tip there (optional tool
     ``pitch``/``roll`` in degrees) along a straight line (``path="line"``) or in joint space
-    (``path="joint"``): see :meth:`Simulation.move_to` and :meth:`Move.to_tip`."""
+    (``path="joint"``): see :meth:`Simulation.move_to` and :meth:`Move.to_tip`.
+
+    ``profile=`` (and the attribute ``profile``) is the old name of ``shape``, accepted for one
+    release with a DeprecationWarning; given with ``shape``, ``profile`` wins (as
+    ``dataclasses.replace(move, profile=...)`` expects)."""
 
     target: Pose | None
     duration: float
-    profile: str | Profile = "linear"
-    phase: str = "move"
-    tip: tuple[float, float, float] | None = None
-    pitch: float | None = None
-    roll: float | None = None
-    path: str = "line"
+    shape: Shape
+    phase: str
+    tip: tuple[float, float, float] | None
+    pitch: float | None
+    roll: float | None
+    path: str
+
+    def __init__(
+        self,
+        target: Pose | None,
+        duration: float,
+        shape: Shape | None = None,
+        phase: str = "move",
+        tip: tuple[float, float, float] | None = None,
+        pitch: float | None = None,
+        roll: float | None = None,
+        path: str = "line",
+        *,
+        profile: Shape | None = None,
+    ) -> None:
+        if profile is not None:
+            warnings.warn(_RENAMED, DeprecationWarning, stacklevel=_caller_level())
+            shape = profile
+        values = (target, duration, "linear" if shape is None else shape, phase)
+        for name, value in zip(("target", "duration", "shape", "phase"), values, strict=True):
+            object.__setattr__(self, name, value)
+        for name, value in (("tip", tip), ("pitch", pitch), ("roll", roll), ("path", path)):
+            object.__setattr__(self, name, value)
+
+    @property
+    def profile(self) -> Shape:
+        """Deprecated: the move's :attr:`shape` (its old name)."""
+        warnings.warn(_RENAMED, DeprecationWarning, stacklevel=2)
+        return self.shape
 
     @classmethod
     def to_tip(
@@ -37,11 +78,24 @@ class Move:
         pitch: float | None = None,
         roll: float | None = None,
         path: str = "line",
-        profile: str | Profile = "linear",
+        shape: Shape | None = None,
         phase: str = "move",
+        profile: Shape | None = None,
     ) -> Move:
-        """A move of the tip to ``tip`` (metres, base frame)."""
-        return cls(None, duration, profile, phase, tuple(tip), pitch, roll, path)  # type: ignore[arg-type]
+        """A move of the tip to ``tip`` (metres, base frame); ``profile=`` as in :class:`Move`."""
+        if profile is not None:
+            warnings.warn(_RENAMED, DeprecationWarning, stacklevel=2)
+            shape = profile
+        return cls(None, duration, shape, phase, tuple(tip), pitch, roll, path)  # type: ignore[arg-type]
+
+
+def _caller_level() -> int:
+    """The stack level of the code that made a Move (past ``dataclasses.replace``)."""
+    frame: Any = sys._getframe(2)
+    level = 2
+    while frame is not None and frame.f_code.co_filename.endswith("dataclasses.py"):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 @dataclass(frozen=True)

@@ -2,8 +2,8 @@
 
 :func:`plan_segments` plans a sequence of :data:`~so101sim.motion.segments.Segment` s from a
 commanded pose, the way a run commands them (each segment from where the one before it leaves
-the targets): joint moves by their profile, tip moves by inverse kinematics (a straight line
-solved at every step), holds as the target held. Every target, profile and duration is checked
+the targets): joint moves by their shape, tip moves by inverse kinematics (a straight line
+solved at every step), holds as the target held. Every target, shape and duration is checked
 on the way, so a plan that exists can run. :func:`run_plan` then steps the plan on a
 :class:`~so101sim.sim.simulation.Simulation`, and :meth:`PlannedMotion.path` gives what it
 commands step by step (the video's framing): a run plans each motion once, and whatever looks
@@ -20,8 +20,10 @@ import mujoco
 import numpy as np
 
 from ..errors import DurationError, SettingError
+from ..exitgate import mujoco_call
 from ..model.load import arm_units
 from ..sim.limited import LimitedProfile, ShortMove, short_move, too_short
+from ..sim.moveplan import plan_joint_move, plan_tip_move
 from ..sim.profiles import MAX_MOVE_DURATION_S, SHAPES, get_profile, plan, steps_for
 from ..sim.simulation import TRACE_AUTO_STEPS, Observer, Simulation
 from ..units import Pose
@@ -31,7 +33,7 @@ from .moves import Hold, Move, RunResult, Segment
 log = logging.getLogger(__name__)
 
 _KEEP_ROWS = TRACE_AUTO_STEPS
-"""A joint move longer than this many steps keeps its recipe (start, goal, steps, profile),
+"""A joint move longer than this many steps keeps its recipe (start, goal, steps, shape),
 not its rows: they are computed again when needed (planning a joint move is arithmetic), so a
 motion of long moves does not hold all their targets at once."""
 
@@ -108,7 +110,7 @@ def plan_segments(
     strict: bool = False,
 ) -> PlannedMotion:
     """Plan ``segments`` from the commanded pose ``start`` (a pose, or an array in arm units),
-    checking every target, profile and duration: THE motion planner and checker (a run, the
+    checking every target, shape and duration: THE motion planner and checker (a run, the
     preflight, the robust preflight and the framing all use it). ``known``: tip moves already
     planned (segment index -> ``(start, targets)``, as the motion-file loader planned them),
     used when they start where this plan has them start, so a tip line is solved once per run.
@@ -152,17 +154,18 @@ def plan_segments(
             if done is not None and np.array_equal(done[0], current):
                 targets = done[1]
             else:
-                _, targets = sim.plan_tip_move(
-                    seg.tip, seg.duration, pitch=seg.pitch, roll=seg.roll, path=seg.path,
-                    shape=seg.profile,
-                )  # fmt: skip
+                with mujoco_call():  # as Simulation.plan_tip_move, which would check n again
+                    _, targets = plan_tip_move(
+                        sim, seg.tip, seg.duration, pitch=seg.pitch, roll=seg.roll,
+                        path=seg.path, shape=seg.shape, steps=n,
+                    )  # fmt: skip
             entry = PlannedSegment(seg, current, targets, len(targets))
-            prof = get_profile(seg.profile, units)
+            prof = get_profile(seg.shape, units)
             if seg.path == "joint" and isinstance(prof, LimitedProfile):  # to the IK's goal
                 short = short_move(prof, i, seg.phase, current, targets[-1], n, dt)
                 stretched += [short] if short is not None else []
         else:
-            prof = get_profile(seg.profile, units)
+            prof = get_profile(seg.shape, units)
             if isinstance(prof, LimitedProfile):
                 goal = units.pose_to_array(seg.target, clip=clip)  # type: ignore[arg-type]
                 short = short_move(prof, i, seg.phase, current, goal, n, dt)
@@ -171,9 +174,10 @@ def plan_segments(
                     if strict:  # refused once the whole motion is checked: go on from its goal
                         sim.command_array(goal, check=False)
                         continue
-            _, targets = sim.plan_move(seg.target, seg.duration, shape=seg.profile, clip=clip)
-            if len(targets) > _KEEP_ROWS and isinstance(seg.profile, str) and seg.profile in SHAPES:
-                recipe = (targets[-1].copy(), get_profile(seg.profile), dt)
+            # n: the duration checked above, once (Simulation.plan_move would check it again)
+            _, targets = plan_joint_move(sim, seg.target, seg.duration, seg.shape, clip, steps=n)
+            if len(targets) > _KEEP_ROWS and isinstance(seg.shape, str) and seg.shape in SHAPES:
+                recipe = (targets[-1].copy(), get_profile(seg.shape), dt)
                 entry = PlannedSegment(seg, current, None, len(targets), recipe)
             else:
                 entry = PlannedSegment(seg, current, targets, len(targets))

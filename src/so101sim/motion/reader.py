@@ -1,11 +1,12 @@
 """Reading a motion file's data (:mod:`so101sim.motion.file` holds the loader): errors at
 the line of the key they came from, unknown keys, the file's settings (description, units,
-profile, durations) and its poses (named, inline, the start pose), each checked by the units
+shape, durations) and its poses (named, inline, the start pose), each checked by the units
 module or :mod:`so101sim.validation` as the API checks them.
 """
 
 from __future__ import annotations
 
+import logging
 import reprlib
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
@@ -29,8 +30,10 @@ from ..units import (
     normalize_joint_name,
     parse_pose,
 )
-from ..validation import check_choice, check_duration
+from ..validation import check_choice, check_duration, check_name
 from .lines import KeyLines
+
+log = logging.getLogger(__name__)
 
 BUILTIN_POSES: dict[str, dict[str, float]] = {"rest": dict(STARTING_POSE), "zero": dict(ZERO_POSE)}
 """Poses every motion file may use without defining them."""
@@ -76,7 +79,7 @@ class FileReader:
     error its line (:class:`so101sim.motion.file._Loader` reads the steps on top of it).
 
     Joint names, numbers and limits are checked by the units module (``units``, the model's
-    own), durations and profile names by :mod:`so101sim.validation`; their errors become
+    own), durations and shape names by :mod:`so101sim.validation`; their errors become
     :class:`MotionFileError` at the line of the key they came from.
     """
 
@@ -88,7 +91,9 @@ class FileReader:
         lo, hi = units.limits
         self.inside = (lo + hi) / 2  # a pose inside every limit: one joint is checked at a time
         self.known: dict[str, dict[str, float]] = dict(BUILTIN_POSES)  # poses steps may name
-        self.default_profile = "linear"
+        self.default_shape = "linear"
+        self.old_key_lines: list[int] = []  # where the file spells "shape" "profile"
+        self.shape_key = "shape"  # the key the step being read names its shape by
 
     # ------------------------------------------------------------------------ errors
     def fail(self, where: Where, reason: str) -> MotionFileError:
@@ -127,9 +132,35 @@ class FileReader:
             )
         return str(value)
 
-    def profile(self, value: Any, where: Where) -> str:
-        with self.reasons(where):
-            return check_choice(value, "profile", sorted(PROFILES))
+    def shape(self, table: Mapping[str, Any], where: Where, default: str) -> str:
+        """A move's shape, from ``table``'s ``shape`` key (or ``profile``, its old name: one
+        logged warning per file, :meth:`warn_old_key`), or ``default``."""
+        if "shape" in table and "profile" in table:
+            raise self.fail(
+                (*where, "profile"),
+                "both shape and profile given; expected shape only (profile is its old name)",
+            )
+        key = "profile" if "profile" in table else "shape"
+        if key not in table:
+            return default
+        if key == "profile":
+            self.old_key_lines.append(self.loc.line((*where, key)))
+        with self.reasons((*where, key)):
+            return check_choice(table[key], key, sorted(PROFILES))
+
+    def warn_old_key(self) -> None:
+        """One logged warning for a file that names a move's shape ``profile``."""
+        if self.old_key_lines:
+            lines = ", ".join(str(n) for n in self.old_key_lines[:5])
+            more = " ..." if len(self.old_key_lines) > 5 else ""
+            log.warning(
+                "%s: the key 'profile' (line %s%s) is the old name of 'shape' and goes in the "
+                "next release; rename it to 'shape' ('profile' names the arm profile, the "
+                "servos' model)",
+                self.path,
+                lines,
+                more,
+            )
 
     def duration(self, value: Any, where: Where, what: str, maximum: float) -> float:
         with self.reasons(where):
@@ -146,6 +177,8 @@ class FileReader:
                     ("poses", name),
                     f"pose {show(name)} is built in and cannot be redefined; choose another name",
                 )
+            with self.reasons(("poses", name)):  # a pose's name is a step's default name
+                check_name(name, "pose name")
             poses[name] = self.pose(value, ("poses", name))
         return poses
 

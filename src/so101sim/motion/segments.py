@@ -3,7 +3,7 @@
 A motion is a sequence of :data:`Segment` s (:class:`Move` and :class:`Hold`), each one
 planned whole and then stepped by :class:`~so101sim.sim.simulation.Simulation`: a move of T
 seconds is exactly ``round(T / timestep)`` physics steps of simulated time, its targets
-computed at once by a profile (:mod:`so101sim.sim.profiles`) and replayed in C.
+computed at once by its shape (:mod:`so101sim.sim.profiles`) and replayed in C.
 
 The ``(m, d)`` functions (:func:`move`, :func:`hold`, :func:`plan_move`, :func:`run_motion`)
 are thin wrappers over :meth:`Simulation.attach`, for handout-style code that holds a bare
@@ -19,6 +19,7 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
+from ..sim.moveplan import Shape, move_shape
 from ..sim.profiles import PROFILES, Profile, get_profile, steps_for
 from ..sim.simulation import Observer, SegmentResult, Simulation
 from ..units import STARTING_POSE, Pose
@@ -35,12 +36,15 @@ def plan_move(
     target: Pose,
     duration: float,
     *,
-    profile: str | Profile = "linear",
+    shape: Shape | None = None,
     clip: bool = False,
+    profile: Shape | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Validate a move and compute all its targets: ``(start, targets)`` in arm units
-    (:meth:`Simulation.plan_move`). Nothing moves."""
-    return Simulation.attach(m, d).plan_move(target, duration, shape=profile, clip=clip)
+    (:meth:`Simulation.plan_move`). Nothing moves. ``shape``: ``"linear"`` (default),
+    ``"minimum_jerk"``, ``"limited"`` or a function; ``profile=`` is its deprecated old name."""
+    shape = move_shape(shape, profile)
+    return Simulation.attach(m, d).plan_move(target, duration, shape=shape, clip=clip)
 
 
 def move(
@@ -49,15 +53,18 @@ def move(
     target: Pose,
     duration: float,
     *,
-    profile: str | Profile = "linear",
+    shape: Shape | None = None,
     observers: Sequence[Observer] = (),
     clip: bool = False,
     phase: str = "move",
+    profile: Shape | None = None,
 ) -> SegmentResult:
     """Move the arm from its last commanded target to ``target`` over ``duration`` simulated
-    seconds, then return what happened (:meth:`Simulation.move_to`)."""
+    seconds with ``shape`` (as :func:`plan_move`; ``profile=`` its deprecated old name), then
+    return what happened (:meth:`Simulation.move_to`)."""
+    shape = move_shape(shape, profile)
     return Simulation.attach(m, d).move_to(
-        target, duration, shape=profile, observers=observers, clip=clip, phase=phase
+        target, duration, shape=shape, observers=observers, clip=clip, phase=phase
     )
 
 

@@ -10,7 +10,7 @@ A move whose table has a ``tip`` key moves the gripper's tip (the ``gripperframe
 * ``path``: ``"line"`` (default: the tip follows a straight line) or ``"joint"`` (inverse
   kinematics for the end only, then a joint-space move).
 
-``duration``, ``profile`` and ``name`` stay keys of the step, as for any move. The checks here
+``duration``, ``shape`` and ``name`` stay keys of the step, as for any move. The checks here
 raise :class:`~so101sim.errors.SettingError` (the loader, :mod:`so101sim.motion.file`, gives
 them the file and line); :class:`TipPlanner` plans each tip move in full from the target
 before it, exactly as the run will, so an unreachable point is reported when the file is loaded
@@ -27,8 +27,10 @@ import mujoco
 import numpy as np
 
 from ..errors import JointNameError, SettingError, UnreachableError
+from ..exitgate import mujoco_call
 from ..model.load import load_model
-from ..sim.profiles import Profile
+from ..sim.moveplan import Shape, plan_tip_move
+from ..sim.profiles import step_count
 from ..sim.simulation import Simulation
 from ..units import normalize_joint_name
 from ..validation import check_choice, check_range, shown
@@ -37,7 +39,7 @@ from .segments import Move
 TIP_KEYS = ("tip", "pitch", "roll", "path")
 """The keys of a tip move's table."""
 
-STEP_ONLY_KEYS = ("duration", "profile", "name")
+STEP_ONLY_KEYS = ("duration", "shape", "profile", "name")
 """Keys that belong to the step, not to the move's table (a likely slip)."""
 
 PATHS = ("line", "joint")
@@ -55,7 +57,7 @@ class TipTarget:
     roll: float | None = None
     path: str = "line"
 
-    def move(self, duration: float, profile: str | Profile, phase: str) -> Move:
+    def move(self, duration: float, shape: Shape, phase: str) -> Move:
         """The :class:`~so101sim.motion.Move` for this target."""
         return Move.to_tip(
             self.tip,
@@ -63,7 +65,7 @@ class TipTarget:
             pitch=self.pitch,
             roll=self.roll,
             path=self.path,
-            profile=profile,
+            shape=shape,
             phase=phase,
         )
 
@@ -114,7 +116,7 @@ def _key_problem(key: str) -> str:
     try:
         joint = normalize_joint_name(key)
     except JointNameError:
-        hint = " (duration, profile and name are keys of the step)"
+        hint = " (duration, shape and name are keys of the step)"
         return f"unknown key {shown(key)} in a tip move; expected {', '.join(TIP_KEYS)}" + (
             hint if key in STEP_ONLY_KEYS else ""
         )
@@ -146,7 +148,7 @@ class TipPlanner:
 
         Raises:
             UnreachableError: the tip, or a point of its line, is out of reach.
-            SettingError: a profile a straight line cannot follow (``limited``).
+            SettingError: a shape a straight line cannot follow (``limited``).
         """
         return self.plan(move, current)[1][-1].copy()
 
@@ -161,14 +163,17 @@ class TipPlanner:
         if self._sim is None:
             self._sim = Simulation(self._model or load_model(), initial_pose=None)
         self._sim.command_array(current, check=False)
-        start, targets = self._sim.plan_tip_move(
-            move.tip,  # type: ignore[arg-type]
-            move.duration,
-            pitch=move.pitch,
-            roll=move.roll,
-            path=move.path,
-            shape=move.profile,
-        )
+        with mujoco_call():  # as Simulation.plan_tip_move; the loader checked the duration
+            start, targets = plan_tip_move(
+                self._sim,
+                move.tip,  # type: ignore[arg-type]
+                move.duration,
+                pitch=move.pitch,
+                roll=move.roll,
+                path=move.path,
+                shape=move.shape,
+                steps=step_count(move.duration, self._sim.timestep),
+            )
         self.last = (start, targets)
         return start, targets
 

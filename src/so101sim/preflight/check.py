@@ -28,7 +28,7 @@ gives 11 N·m/rad, a 27 ms delay), so its tracking errors are those of the real 
 efforts stay well inside the limit in the lab's moves (the slew-limited goal does not kick
 the motor at a move's start).
 
-Why a time and not the bare peak: the ``linear`` profile (the lab's) starts and stops each move
+Why a time and not the bare peak: the ``linear`` shape (the lab's) starts and stops each move
 with a step in velocity, and the vendored model's stiff actuators (``--arm official``, kp ≈
 998 N·m/rad) meet it by saturating for a few milliseconds (shoulder and elbow: 6–14 ms in the
 lab motion) while the tracking error stays under 0.3°. The servo follows; the report notes
@@ -67,6 +67,7 @@ from ..model.load import arm_units, load_model
 from ..motion.file import load_motion
 from ..motion.segments import Segment
 from ..units import STARTING_POSE, Pose, format_value
+from ..validation import escape_controls
 from .judge import (
     ContactFinding,
     EffortFinding,
@@ -131,7 +132,7 @@ def preflight(
     ``known``: tip moves already planned on ``model`` (``MotionFile.tip_plans``).
 
     Raises:
-        So101SimError: an invalid step (bad target, duration, profile), or strict refusal.
+        So101SimError: an invalid step (bad target, duration, shape), or strict refusal.
     """
     th = thresholds if thresholds is not None else Thresholds()
     m = model if isinstance(model, mujoco.MjModel) else load_model(model, arm=arm)
@@ -180,7 +181,7 @@ def check_motion_file(
 # ---------------------------------------------------------------------------- wording
 def describe(finding: Finding, th: Thresholds) -> str:
     """A finding in words, as listed under FAIL or as a note."""
-    label = f"step {finding.step} ({finding.phase})"
+    label = f"step {finding.step} ({escape_controls(finding.phase, lines=False)})"
     name = finding.joint
 
     def value(v: float) -> str:
@@ -207,7 +208,8 @@ def describe(finding: Finding, th: Thresholds) -> str:
             return (
                 f"{label}: {name}'s effort peaks at {peak:.0%} of its force limit "
                 f"for {saturated * 1000:.0f} ms (allowed: up to "
-                f"{th.max_saturation * 1000:.0f} ms); a smooth profile avoids the spike"
+                f"{th.max_saturation * 1000:.0f} ms); a smooth shape "
+                '(shape = "minimum_jerk") avoids the spike'
             )
         case TrackingFinding(error=error, at=at):
             return (
@@ -257,7 +259,8 @@ def format_report(report: PreflightReport) -> str:
 
 def _step_rows(s: StepCheck, marked: set[tuple[int, str, type]]) -> list[str]:
     where = f" (line {s.line})" if s.line else ""
-    rows = [f"{s.index:<5}{s.phase[:13]:<14}{s.kind} {s.start_time:.3f}-{s.end_time:.3f} s{where}"]
+    phase = escape_controls(s.phase, lines=False)[:13]  # a name from the API may hold anything
+    rows = [f"{s.index:<5}{phase:<14}{s.kind} {s.start_time:.3f}-{s.end_time:.3f} s{where}"]
     for name, j in s.joints.items():
         flags = ["!" if (s.index, name, kind) in marked else " " for kind in _MARKED]
         rows.append(_joint_row(name, j, flags))

@@ -15,6 +15,7 @@ import numpy as np
 from ..errors import SettingError
 from ..recording.paths import check_output_path, write_atomically
 from ..recording.plot import PLOT_SUFFIXES
+from ..validation import escape_controls
 from .check import describe
 from .judge import Thresholds
 from .rollout import VariantOutcome
@@ -110,7 +111,9 @@ def _kind(finding: Any) -> str:
 
 
 def _steps(findings: list[Any]) -> str:
-    named = dict.fromkeys(f"step {f.step} ({f.phase})" for f in findings)
+    named = dict.fromkeys(
+        f"step {f.step} ({escape_controls(f.phase, lines=False)})" for f in findings
+    )
     return ", ".join(named) if named else "the steps named above"
 
 
@@ -130,13 +133,13 @@ def advice(check: str, worst: Worst | None, th: Thresholds) -> str:
     if check == "effort":
         payload = f" (the worst variant carries {worst.variant.payload_kg:.3f} kg)" if worst else ""
         return (
-            f"a slower move (a longer duration for {where}), a smooth profile (profile = "
+            f"a slower move (a longer duration for {where}), a smooth shape (shape = "
             f'"minimum_jerk" or "limited" on those steps), or less payload{payload}'
         )
     if check == "tracking error":
         return (
-            f"a slower move (a longer duration for {where}) or a smooth profile "
-            '(profile = "minimum_jerk"): the servo lags most where a move starts or stops hard'
+            f"a slower move (a longer duration for {where}) or a smooth shape "
+            '(shape = "minimum_jerk"): the servo lags most where a move starts or stops hard'
         )
     return f"move the path of {where} away from what it touches (a waypoint above it)"
 

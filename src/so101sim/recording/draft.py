@@ -1,6 +1,8 @@
 """The private model a video is drawn with (:func:`render_model`), and the ``draft`` preset's
 simplified meshes: their manifest, matching a model to the file its draft version comes from
-(:func:`draft_source`, by file or by a content fingerprint), and compiling that draft version.
+(:func:`draft_source`, by file or by a content fingerprint), and building that draft version
+(the model builder's recipe of the file or scene, with the draft meshes as an
+:class:`~so101sim.model.build.Addition`, made each time: this module keeps its own caches).
 
 The ``draft`` preset swaps the visual meshes for simplified ones shipped in
 ``so101sim/data/draft_meshes`` (about 5000 triangles each), or, for frames no larger than
@@ -14,6 +16,7 @@ model is never changed.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
 import hashlib
 import json
@@ -26,7 +29,9 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ..errors import SettingError
+from ..errors import ModelError, SettingError
+from ..model.arm import OFFICIAL
+from ..model.build import Addition, ModelRecipe, build, recipe, recipe_of
 from ..model.load import load_model, loaded_models, model_dir, model_source
 from ..model.trim import is_physics_only
 from ..scenes import scene_builder
@@ -122,19 +127,38 @@ def _delete_unused_meshes(spec: mujoco.MjSpec) -> None:
         spec.delete(mesh)
 
 
-def _compile_draft(source: Path, small: bool = False) -> mujoco.MjModel | None:
-    """Compile ``source`` for drawing only: visual mesh geoms use the shipped simplified meshes
-    whose originals match (by SHA-256), collision geoms are left out. None if nothing matches."""
-    return _compile_draft_spec(mujoco.MjSpec.from_file(str(source)), small)
+class _NoDraft(Exception):
+    """No mesh of the spec has a shipped draft version (raised by the draft's edit, inside the
+    builder, and caught by :func:`_build_draft`: nothing to build)."""
 
 
-def _compile_draft_spec(spec: mujoco.MjSpec, small: bool = False) -> mujoco.MjModel | None:
+def _draft_meshes(spec: mujoco.MjSpec, small: bool) -> None:
+    """The draft edit: visual mesh geoms use the shipped simplified meshes whose originals
+    match (by SHA-256), collision geoms are left out."""
     swapped = _add_draft_meshes(spec, small)
     if not swapped:
-        return None
+        raise _NoDraft
     _use_draft_meshes(spec, swapped)
     _delete_unused_meshes(spec)
-    return spec.compile()
+
+
+def _build_draft(r: ModelRecipe, small: bool = False) -> mujoco.MjModel | None:
+    """The draft version of recipe ``r`` (a file, or a scene's recipe), built by the model
+    builder each time (``keep=False``: this module caches it), for drawing only; None if no
+    mesh has a draft version."""
+    draft = Addition(
+        "draft-small" if small else "draft", functools.partial(_draft_meshes, small=small)
+    )
+    try:
+        return build(dataclasses.replace(r, keep=False).with_additions(draft))
+    except _NoDraft:
+        return None
+
+
+def _compile_draft(source: Path, small: bool = False) -> mujoco.MjModel | None:
+    """The draft version of the file ``source`` as it is (its own actuators: drawing only), or
+    None if nothing matches."""
+    return _build_draft(recipe(source, arm=OFFICIAL), small)
 
 
 def _cached_draft(source: Path, small: bool = False) -> mujoco.MjModel | None:
@@ -144,7 +168,7 @@ def _cached_draft(source: Path, small: bool = False) -> mujoco.MjModel | None:
         if key not in _draft_cache:
             try:
                 _draft_cache[key] = _compile_draft(source, small)
-            except (ValueError, mujoco.FatalError) as exc:  # keep the model's meshes
+            except ModelError as exc:  # keep the model's meshes
                 log.warning("draft meshes not used for %s: %s", source, exc)
                 _draft_cache[key] = None
         return _draft_cache[key]
@@ -227,12 +251,12 @@ def draft_source(model: mujoco.MjModel) -> tuple[Path | None, str]:
 def _draft_model(model: mujoco.MjModel, small: bool = False) -> mujoco.MjModel:
     """The draft version of ``model`` with the same bodies and joints, else ``model`` itself
     (with a logged warning saying why)."""
-    builder = scene_builder(model)  # a scene built with MjSpec (cameras, objects): rebuild it
-    if builder is not None:
+    scene = recipe_of(model) if scene_builder(model) is not None else None
+    if scene is not None:  # a scene built with MjSpec (cameras, objects): rebuild it
         with _render_lock:
             drafts = _scene_drafts.setdefault(model, {})
             if small not in drafts:
-                drafts[small] = _compile_draft_spec(builder(), small)
+                drafts[small] = _build_draft(scene, small)
             draft = drafts[small]
         if draft is not None and (draft.nq, draft.nbody) == (model.nq, model.nbody):
             return draft

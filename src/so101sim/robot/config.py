@@ -11,7 +11,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 import numpy as np
 
@@ -27,10 +27,13 @@ from ..validation import (
     check_range,
     is_real,
 )
-from ..viewer import VIEWER_QUALITIES
+from ..viewer import VIEWER_QUALITIES, ViewerQuality
 from .cameras import parse_cameras
 
-MODES: tuple[str, ...] = ("realtime", "lockstep")
+RobotMode = Literal["realtime", "lockstep"]
+"""How the follower's simulated time advances: in the background at ``speed`` x real time, or
+only through ``step()`` and the fixed amounts of the config (deterministic)."""
+MODES: tuple[str, ...] = get_args(RobotMode)
 GRIPPER_TORQUE_FRACTION = 0.5
 """Share of the actuator's force range the gripper may use: LeRobot's ``configure()`` writes
 ``Max_Torque_Limit = 500`` (of 1000) to the real gripper (with ``Protection_Current = 250`` and
@@ -128,11 +131,11 @@ class SO101SimFollowerConfig:
     follower's model. None: the arm alone, as the shipped scene has it."""
     viewer: bool = False
     """Open MuJoCo's passive viewer at ``connect()`` (needs a display)."""
-    viewer_quality: str = "auto"
+    viewer_quality: ViewerQuality = "auto"
     """What the viewer draws: ``"draft"`` (simplified meshes, no shadows: fast on a computer
     without a GPU), ``"full"`` (the model's meshes), or ``"auto"`` (draft when OpenGL renders on
     the CPU, e.g. in a VM, WSL or a remote desktop; full on a GPU)."""
-    mode: str = "realtime"
+    mode: RobotMode = "realtime"
     """``"realtime"``: physics runs in the background at ``speed`` × real time.
     ``"lockstep"``: simulated time advances only through ``step()`` and the fixed amounts
     below, deterministically."""

@@ -16,24 +16,30 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal, get_args
 
 from ..errors import SettingError
 from ..validation import check_choice, check_count, check_range
 
-SHAPES = ("box", "cylinder", "sphere", "bowl", "open_box", "mesh", "mark")
+ObjectShape = Literal["box", "cylinder", "sphere", "bowl", "open_box", "mesh", "mark"]
 """Object shapes: solid ``box``, ``cylinder``, ``sphere``; containers ``bowl`` (round, with a
 wall of flat segments) and ``open_box`` (a tray); ``mesh``, a convex mesh generated at load
 time (an octagonal prism with a chamfered top, like a nut: :func:`so101sim.scenes.parts.
 mesh_vertices`); ``mark``, a flat disc that only shows a place on the table (it touches
 nothing and floats where it is put: a goal)."""
+SHAPES: tuple[str, ...] = get_args(ObjectShape)
+"""The object shapes (:data:`ObjectShape`), the list the objects are checked against."""
 CONTAINERS = ("bowl", "open_box")
 """Shapes that are targets to put things in: a floor and walls, open at the top."""
-SURFACES = ("table", "floor")
+Surface = Literal["table", "floor"]
 """What the arm and the objects stand on: a table (a box whose top is z = 0, the floor below
 it) or the shipped floor plane itself."""
+SURFACES: tuple[str, ...] = get_args(Surface)
 MARKS = ("mark",)
 """Shapes that touch nothing (goals drawn on the table)."""
-CONES = ("elliptic", "pyramidal")
+Cone = Literal["elliptic", "pyramidal"]
+"""MuJoCo's friction cone for the scene's contacts."""
+CONES: tuple[str, ...] = get_args(Cone)
 
 MIN_SIZE_M, MAX_SIZE_M = 0.005, 0.5
 MIN_MARK_M = 0.0005
@@ -86,7 +92,7 @@ class SceneObject:
     floor thickness."""
 
     name: str
-    shape: str = "box"
+    shape: ObjectShape = "box"
     size: tuple[float, ...] = (0.025, 0.025, 0.025)
     mass: float = 0.03
     rgba: tuple[float, ...] = (0.85, 0.15, 0.1, 1.0)
@@ -175,7 +181,7 @@ class Table:
     at ``center``, its top at z = 0 (the base's height), ``height`` above the floor (which is
     moved down to meet its legs' end); ``"floor"``: the shipped floor plane, nothing added."""
 
-    surface: str = "table"
+    surface: Surface = "table"
     size: tuple[float, float] = (0.7, 0.9)
     center: tuple[float, float] = (0.2, 0.0)
     height: float = 0.75
@@ -222,7 +228,7 @@ class ContactSettings:
     condim: int = 4
     solref: tuple[float, float] = (0.004, 1.0)
     solimp: tuple[float, ...] = (0.99, 0.999, 0.001, 0.5, 2.0)
-    cone: str = "elliptic"
+    cone: Cone = "elliptic"
     impratio: float = 10.0
     pad_friction: float = 1.5
     torsional: float = 0.01

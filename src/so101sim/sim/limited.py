@@ -42,7 +42,7 @@ from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
 from ..errors import SettingError, TrajectoryLimitError
 from ..model.load import default_units
 from ..units import JOINT_NAMES, ArmUnits
-from ..validation import check_range
+from ..validation import check_range, escape_controls
 
 log = logging.getLogger(__name__)
 
@@ -221,7 +221,8 @@ def too_short(short: Sequence[ShortMove], dt: float) -> TrajectoryLimitError:
     short for the joint limits, naming the first."""
     s = short[0]
     return TrajectoryLimitError(
-        f"step {s.index + 1} ({s.phase}) asks for {s.requested:.3f} s but the joint limits "
+        f"step {s.index + 1} ({escape_controls(s.phase, lines=False)}) asks for "
+        f"{s.requested:.3f} s but the joint limits "
         f"need at least {s.needed:.3f} s ({s.minimum:.4f} s rounded up to whole "
         f"{dt * 1000:g} ms steps); lengthen it to {s.needed:.3f} s or more, or run "
         f"without --strict to stretch it ({len(short)} move(s) too short in all)"

@@ -61,11 +61,20 @@ def move_shape(shape: Shape | None, profile: Shape | None, default: Shape = "lin
 
 
 def plan_joint_move(
-    sim: Simulation, target: Pose, duration: float, shape: Shape, clip: bool
+    sim: Simulation,
+    target: Pose,
+    duration: float,
+    shape: Shape,
+    clip: bool,
+    *,
+    steps: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Validate a joint-space move and compute its targets (see :meth:`Simulation.plan_move`)."""
+    """Validate a joint-space move and compute its targets (see :meth:`Simulation.plan_move`).
+    ``steps``: the move's physics steps where its duration was already checked (the motion
+    planner checks each duration once, :func:`so101sim.motion.plan.plan_segments`); None:
+    checked here."""
     goal = sim.units.pose_to_array(target, clip=clip)
-    n = steps_for(duration, sim.timestep, maximum=MAX_MOVE_DURATION_S)
+    n = move_steps(sim, duration, steps)
     for warning in unit_warnings(goal):
         log.warning("%s", warning)
     if (w := duration_warning(float(duration), "move duration")) is not None:
@@ -84,14 +93,16 @@ def plan_tip_move(
     roll: float | None,
     path: TipPath,
     shape: Shape,
+    steps: int | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Plan a move of the tip (see :meth:`Simulation.move_to`): ``(start, targets)``."""
+    """Plan a move of the tip (see :meth:`Simulation.move_to`): ``(start, targets)``.
+    ``steps`` as for :func:`plan_joint_move`."""
     from ..kinematics import plan_line, solve_ik  # imported here: only tip moves need it
     from ..kinematics.paths import MAX_LINE_STEPS
 
     _ = sim.kinematics  # held here, so that the planner's calls share it
     check_choice(path, "path", ("line", "joint"))
-    n = steps_for(required_duration(duration), sim.timestep, maximum=MAX_MOVE_DURATION_S)
+    n = move_steps(sim, required_duration(duration), steps)
     if path == "line" and n > MAX_LINE_STEPS:  # a model with a very short timestep
         raise SettingError(
             f"a straight tip line of {duration:g} s is {n} physics steps of "
@@ -108,6 +119,14 @@ def plan_tip_move(
     return start, line.targets
 
 
+def move_steps(sim: Simulation, duration: float, steps: int | None) -> int:
+    """The physics steps of a move: ``steps`` as given (its duration checked by the caller,
+    the motion planner), or ``duration`` checked here (a move asked of the simulation)."""
+    if steps is not None:
+        return steps
+    return steps_for(duration, sim.timestep, maximum=MAX_MOVE_DURATION_S)
+
+
 def required_duration(duration: float | None) -> float:
     if duration is None:
         raise DurationError("duration is missing; expected the move's length in seconds > 0")
@@ -119,6 +138,7 @@ __all__ = [
     "ShapeName",
     "TipPath",
     "move_shape",
+    "move_steps",
     "plan_joint_move",
     "plan_tip_move",
     "required_duration",

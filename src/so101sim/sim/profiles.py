@@ -38,7 +38,13 @@ def steps_for(
     """Physics steps in ``duration`` seconds: ``round(duration / timestep)``, at least 1.
     ``duration`` is checked first (> 0, at most ``maximum`` seconds, a day by default; the
     error names it ``what``)."""
-    n = round(check_duration(duration, what, maximum=maximum) / timestep)
+    return step_count(check_duration(duration, what, maximum=maximum), timestep)
+
+
+def step_count(duration: float, timestep: float) -> int:
+    """Physics steps in a ``duration`` already checked (by :func:`steps_for`, once: the
+    planner passes its count on): ``round(duration / timestep)``, at least 1."""
+    n = round(duration / timestep)
     if n == 0:
         log.warning(
             "duration %g s is shorter than half a physics step (%g s); it takes one step",

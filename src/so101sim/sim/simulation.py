@@ -3,7 +3,7 @@
 :class:`Simulation` holds the model, the data and everything a run needs beyond them (whether
 the arm was ever commanded, the observers, one wall-clock timeline per viewer), and moves the
 arm: :meth:`~Simulation.move_to`, :meth:`~Simulation.hold`, :meth:`~Simulation.step`. Each
-move is planned whole by a profile (:mod:`so101sim.sim.profiles`), then stepped by
+move is planned whole by its shape (:mod:`so101sim.sim.profiles`), then stepped by
 :func:`so101sim.sim.stepping.advance`; the result is a :class:`SegmentResult`.
 
 Re-exported here: the stepping pieces (:class:`Observer`, :class:`Trace`, :class:`Pacer`,

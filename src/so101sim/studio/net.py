@@ -8,9 +8,12 @@ really listens on, and the guard that refuses a websocket from another site.
 * :class:`OriginGuard` refuses a websocket whose ``Origin`` is not the page's own host (a web
   page on another site, open in the user's own browser, would otherwise stream the scene and
   drive the sliders) and, on a studio that listens on loopback only, one whose ``Host`` is not
-  a loopback name (DNS rebinding). viser has no hook for it: the guard runs first among the
-  websocket server's connect callbacks and closes such a connection (code 1008) before
-  anything is sent, and puts itself in front of the handshake so that later ones get HTTP 403.
+  a loopback name (DNS rebinding). viser has no public hook for it (its ``on_client_connect``
+  runs after its own callback has started sending the scene and shows no request headers):
+  :func:`hook_viser`, the one function that reaches into viser's internals, puts the guard
+  first among the websocket server's connect callbacks, which closes such a connection (code
+  1008) before anything is sent and puts itself in front of the handshake so that later ones
+  get HTTP 403. ``tests/studio/test_viser_hook.py`` fails loudly when viser changes them.
 * :func:`quiet_handshakes`: a plain TCP connect (a port scan, ``nc``) that sends no HTTP
   request is a debug line in the log, not a traceback on the terminal.
 """
@@ -23,6 +26,7 @@ import http
 import ipaddress
 import logging
 import socket
+from collections.abc import Callable
 from typing import Any
 from urllib.parse import urlsplit
 
@@ -161,19 +165,10 @@ class OriginGuard:
 
     def install(self, viser_server: Any) -> None:
         """Put the guard first among the websocket server's connect callbacks."""
-        try:  # viser has no public hook: its websocket server's list (viser 1.x)
-            infra = viser_server._websock_server
-            infra._client_connect_cb.insert(0, self._on_connect)
-            infra._live_connections  # noqa: B018 (read on each connection: there, or fail now)
-        except AttributeError:
-            raise StudioError(
-                "this viser version offers no way to check a websocket's Origin, so the studio "
-                "would accept pages from any site; expected viser 1.x: pip install 'viser<2'"
-            ) from None
-        self._infra = infra
+        self._connection_of = hook_viser(viser_server, self._on_connect)
 
     async def _on_connect(self, client: Any) -> None:
-        connection = self._infra._live_connections.get(client.client_id)
+        connection = self._connection_of(client.client_id)
         if connection is None:
             return
         if not self._handshake_guarded:
@@ -197,6 +192,35 @@ class OriginGuard:
 
         ws_server.process_request = process_request
         self._handshake_guarded = True
+
+
+def hook_viser(viser_server: Any, on_connect: Callable[[Any], Any]) -> Callable[[int], Any]:
+    """Run ``on_connect(client)`` first among a viser server's websocket connect callbacks, and
+    return how to find a client's websocket connection by its ``client_id`` (websockets'
+    ``ServerConnection``: its ``request.headers``, its ``server``).
+
+    The one place so101sim uses viser's private attributes (viser 1.x): its websocket server
+    (``ViserServer._websock_server``), that server's list of connect callbacks
+    (``_client_connect_cb``) and its table of live connections (``_live_connections``, filled
+    before the callbacks run). viser offers no public equivalent: ``on_client_connect`` appends
+    after viser's own callback and its ``ClientHandle`` carries no request headers.
+
+    Raises:
+        StudioError: this viser has no such attributes (the studio would otherwise accept
+            pages from any site).
+    """
+    try:
+        infra = viser_server._websock_server
+        callbacks, live = infra._client_connect_cb, infra._live_connections
+        if not isinstance(callbacks, list) or not isinstance(live, dict):
+            raise AttributeError("not a list and a dict")
+    except AttributeError:
+        raise StudioError(
+            "this viser version offers no way to check a websocket's Origin, so the studio "
+            "would accept pages from any site; expected viser 1.x: pip install 'viser<2'"
+        ) from None
+    callbacks.insert(0, on_connect)
+    return live.get
 
 
 class _QuietHandshakes(logging.Filter):

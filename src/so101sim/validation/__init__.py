@@ -7,8 +7,8 @@ duration that becomes a step count, a frame size, a rate) is bounded before it i
 Each function returns the value converted (``float`` or ``int``) or raises the error class it
 is given, a :class:`~so101sim.errors.SettingError` by default. May import: nothing of so101sim
 but the errors (``so101sim.errors``), so any layer may use it. Modules: :mod:`.numbers`
-(numbers, counts, choices) and :mod:`.paths` (paths to read and write); every name is
-importable from here.
+(numbers, counts, choices), :mod:`.paths` (paths to read and write) and :mod:`.text` (names
+and printed text: control characters refused or escaped); every name is importable from here.
 
 Paths, one check for each direction, used by every command and function that reads or writes
 a file the user names: :func:`check_input_file` (a file to read: the model, a script) and
@@ -44,17 +44,20 @@ from .paths import (
     remove_stale_temps,
     temp_name,
 )
+from .text import MAX_NAME_CHARS, check_name, escape_controls
 
 __all__ = [
     "DEFAULT_NAME_MAX",
     "DEFAULT_PATH_MAX",
     "MAX_DURATION_S",
+    "MAX_NAME_CHARS",
     "MAX_RATE_HZ",
     "STALE_TEMP_S",
     "check_choice",
     "check_count",
     "check_duration",
     "check_input_file",
+    "check_name",
     "check_output_path",
     "check_path_length",
     "check_path_text",
@@ -63,6 +66,7 @@ __all__ = [
     "check_rate",
     "checked_path",
     "claim_path",
+    "escape_controls",
     "is_real",
     "path_limit",
     "remove_stale_temps",

@@ -1,7 +1,7 @@
-"""Run the lab motion with each profile and compare how hard the actuators work.
+"""Run the lab motion with each move shape and compare how hard the actuators work.
 
 The last row, "limited, fastest", gives each lab move the shortest duration the ``limited``
-profile's joint limits allow (rounded up to whole physics steps).
+shape's joint limits allow (rounded up to whole physics steps).
 
 (in the folder the examples were copied to: so101sim examples FOLDER; cd FOLDER)
 python compare_profiles.py
@@ -17,8 +17,8 @@ from so101sim.sim.limited import LimitedProfile, minimum_steps
 TIMESTEP = load_model().opt.timestep  # the physics timestep, s (0.002)
 
 
-def with_profile(profile, fastest=False):
-    """The lab motion with every move using ``profile``; with ``fastest``, each move as short
+def with_shape(shape, fastest=False):
+    """The lab motion with every move using ``shape``; with ``fastest``, each move as short
     as the joint limits allow."""
     units, limited = default_units(), LimitedProfile()
     current = units.pose_to_array(STARTING_POSE)
@@ -30,14 +30,14 @@ def with_profile(profile, fastest=False):
             if fastest:
                 t_min = limited.minimum_duration(current, target)
                 duration = minimum_steps(t_min, TIMESTEP) * TIMESTEP
-            s = dataclasses.replace(s, profile=profile, duration=duration)
+            s = dataclasses.replace(s, shape=shape, duration=duration)
             current = target
         steps.append(s)
     return steps
 
 
-runs = [(p, with_profile(p)) for p in ("linear", "minimum_jerk", "limited")]
-runs.append(("limited, fastest", with_profile("limited", fastest=True)))
+runs = [(p, with_shape(p)) for p in ("linear", "minimum_jerk", "limited")]
+runs.append(("limited, fastest", with_shape("limited", fastest=True)))
 for label, steps in runs:
     report = preflight(steps)
     joints = [(name, j) for s in report.steps for name, j in s.joints.items()]
