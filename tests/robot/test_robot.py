@@ -88,7 +88,10 @@ def test_lerobot_script_reaches_goals_in_realtime_mode():
     robot = SO101SimFollower(SO101SimFollowerConfig(id="rt"))
     observations = lerobot_style_script(robot, GOAL, settle_s=1.4)  # simulated seconds
     final = observations[-1]
-    assert observations[0] == pytest.approx({f"{n}.pos": v for n, v in STARTING_POSE.items()})
+    # the first reading is the start pose, give or take what the physics, running on its own
+    # from connect(), moved before the script read it (0.003° seen on a machine at load 11)
+    start = {f"{n}.pos": v for n, v in STARTING_POSE.items()}
+    assert observations[0] == pytest.approx(start, abs=0.5)
     for k in KEYS:
         assert abs(final[k] - GOAL[k]) < REACH_DEG, (k, final[k])
     # the arm moved while the script slept: the physics ran on its own
