@@ -20,10 +20,10 @@ import numpy as np
 from gymnasium.vector import VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ..errors import ClosedError, SettingError
+from ..errors import SettingError
 from ..preflight.distributed import connect_ray, import_ray
 from ..validation import check_count
-from .worlds import MAX_WORLDS, So101VectorEnv
+from .worlds import MAX_WORLDS, So101VectorEnv, WorldChecks
 
 MAX_RAY_ACTORS = 1024
 
@@ -95,7 +95,7 @@ def merge_infos(parts: list[dict[str, Any]], sizes: list[int]) -> dict[str, Any]
     return out
 
 
-class RayVectorEnv(VectorEnv):
+class RayVectorEnv(WorldChecks, VectorEnv):
     """N worlds of one task over Ray actors (see the module's text); made by
     ``make_vec(task, N, backend="ray", address=..., workers=...)``."""
 
@@ -149,29 +149,12 @@ class RayVectorEnv(VectorEnv):
     def _sizes(self) -> list[int]:
         return [b - a for a, b in self._shares]
 
-    def _check_open(self, what: str) -> None:
-        if self._closed:
-            raise ClosedError(
-                f"{what}() on a closed vector environment; expected an open one (make a new "
-                "one with make_vec after close())"
-            )
-
     def reset(
         self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[Any, dict[str, Any]]:
         """Reset every world; world i gets ``seed + i`` (a list: one seed per world)."""
         self._check_open("reset")
-        if seed is None:
-            seeds: list[int | None] = [None] * self.num_envs
-        elif isinstance(seed, int | np.integer):
-            seeds = [int(seed) + i for i in range(self.num_envs)]
-        else:
-            seeds = list(seed)
-            if len(seeds) != self.num_envs:
-                raise SettingError(
-                    f"{len(seeds)} seeds for {self.num_envs} worlds; expected one seed per "
-                    "world, an int (world i gets seed + i) or None"
-                )
+        seeds = self._seeds(seed)
         refs = [
             actor.reset.remote(seeds[a:b], options)
             for actor, (a, b) in zip(self._actors, self._shares, strict=True)
@@ -183,12 +166,7 @@ class RayVectorEnv(VectorEnv):
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """One control period in every world, each actor stepping its share at once."""
         self._check_open("step")
-        actions = np.asarray(actions)
-        if actions.shape[:1] != (self.num_envs,):
-            raise SettingError(
-                f"actions of shape {actions.shape}; expected ({self.num_envs}, "
-                f"{', '.join(map(str, self.single_action_space.shape))}): one row per world"
-            )
+        actions = self._action_rows(actions)
         refs = [
             actor.step.remote(actions[a:b])
             for actor, (a, b) in zip(self._actors, self._shares, strict=True)

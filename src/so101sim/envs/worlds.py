@@ -34,7 +34,45 @@ from .run import make
 MAX_WORLDS = 65_536
 
 
-class So101VectorEnv(VectorEnv):
+class WorldChecks:
+    """What every vector environment of so101sim checks the same way (needs ``num_envs``,
+    ``_closed`` and ``single_action_space``): a closed environment, the seeds, the actions."""
+
+    num_envs: int
+    _closed: bool
+    single_action_space: Any
+
+    def _check_open(self, what: str) -> None:
+        if self._closed:
+            raise ClosedError(
+                f"{what}() on a closed vector environment; expected an open one (make a new "
+                "one with make_vec after close())"
+            )
+
+    def _seeds(self, seed: int | list[int | None] | None) -> list[int | None]:
+        if seed is None:
+            return [None] * self.num_envs
+        if isinstance(seed, int | np.integer):
+            return [int(seed) + i for i in range(self.num_envs)]
+        seeds = list(seed)
+        if len(seeds) != self.num_envs:
+            raise SettingError(
+                f"{len(seeds)} seeds for {self.num_envs} worlds; expected one seed per world, "
+                "an int (world i gets seed + i) or None"
+            )
+        return seeds
+
+    def _action_rows(self, actions: Any) -> np.ndarray:
+        actions = np.asarray(actions)
+        if actions.shape[:1] != (self.num_envs,):
+            raise SettingError(
+                f"actions of shape {actions.shape}; expected ({self.num_envs}, "
+                f"{', '.join(map(str, self.single_action_space.shape))}): one row per world"
+            )
+        return actions
+
+
+class So101VectorEnv(WorldChecks, VectorEnv):
     """N worlds of one task stepped together (see the module's text); made by :func:`make_vec`."""
 
     metadata: ClassVar[dict[str, Any]] = {
@@ -80,26 +118,6 @@ class So101VectorEnv(VectorEnv):
         """The worker threads that step the worlds."""
         return self._stepper.nthread
 
-    def _check_open(self, what: str) -> None:
-        if self._closed:
-            raise ClosedError(
-                f"{what}() on a closed vector environment; expected an open one (make a new "
-                "one with make_vec after close())"
-            )
-
-    def _seeds(self, seed: int | list[int | None] | None) -> list[int | None]:
-        if seed is None:
-            return [None] * self.num_envs
-        if isinstance(seed, int | np.integer):
-            return [int(seed) + i for i in range(self.num_envs)]
-        seeds = list(seed)
-        if len(seeds) != self.num_envs:
-            raise SettingError(
-                f"{len(seeds)} seeds for {self.num_envs} worlds; expected one seed per world, "
-                "an int (world i gets seed + i) or None"
-            )
-        return seeds
-
     def reset(
         self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[Any, dict[str, Any]]:
@@ -124,12 +142,7 @@ class So101VectorEnv(VectorEnv):
             ClosedError: the environment was closed.
         """
         self._check_open("step")
-        actions = np.asarray(actions)
-        if actions.shape[:1] != (self.num_envs,):
-            raise SettingError(
-                f"actions of shape {actions.shape}; expected ({self.num_envs}, "
-                f"{', '.join(map(str, self.single_action_space.shape))}): one row per world"
-            )
+        actions = self._action_rows(actions)
         steps = np.empty(self.num_envs, dtype=np.int64)
         for i, env in enumerate(self.envs):
             try:
@@ -190,4 +203,4 @@ class So101VectorEnv(VectorEnv):
             env.close()
 
 
-__all__ = ["MAX_WORLDS", "So101VectorEnv"]
+__all__ = ["MAX_WORLDS", "So101VectorEnv", "WorldChecks"]
