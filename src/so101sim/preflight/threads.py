@@ -68,16 +68,17 @@ def run_threads(work: Callable[[], None], count: int, errors: list[BaseException
 
     pending: BaseException | None = None
     pool = [threading.Thread(target=run, args=(k,), daemon=True) for k in range(count)]
-    started: list[threading.Event] = []
     try:
-        with signals_held():  # a signal in Thread.start would hide a started thread
-            for k, th in enumerate(pool):
+        with signals_held():  # the usual signals wait until every thread has started
+            for th in pool:
                 th.start()
-                started.append(done[k])
         _wait_all(done)
     except BaseException as exc:
         pending = exc
         errors.append(exc)  # the workers stop at their next block
+    # the threads that started (an ident), however far the start loop got when an exception
+    # (a signal that is not held) interrupted it: each may already be running its work
+    started = [done[k] for k, th in enumerate(pool) if th.ident is not None]
     while not all(event.is_set() for event in started):
         try:
             _wait_all(started)
