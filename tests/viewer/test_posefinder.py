@@ -306,6 +306,14 @@ def test_dragging_a_joint_slider_in_the_viewer_prints_the_pose(xvfb, tmp_path):
         assert len(pans()) >= 2 and pans()[-1] > 5.0, "".join(lines)
         assert any(line.startswith("toml:   pose_2 = { shoulder_pan = ") for line in lines)
     finally:
+        # closed as a person closes it: the viewer's File > Quit (Ctrl+Q), asked again while
+        # the busy viewer has not seen it (SIGTERM waits for the window: MuJoCo's viewer
+        # holds the main thread in its C loop, where no Python signal handler runs)
+        end = time.monotonic() + 120
+        while window and proc.poll() is None and time.monotonic() < end:
+            xdo("mousemove", "--window", window, "100", "100", "key", "--window", window, "ctrl+q")
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                proc.wait(timeout=2)
         proc.terminate()
         try:
             proc.wait(timeout=20)
