@@ -10,6 +10,7 @@ import argparse
 import json
 import sys
 
+from ..errors import SettingError
 from .output import add_arm_option, say
 from .studio import add_web_options
 
@@ -109,6 +110,7 @@ def _warn(text: str) -> None:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
+    # this command's modules, loaded when it runs (every other command starts without them)
     from ..fidelity.compare import compare
     from ..fidelity.logs import parse_episodes
     from ..fidelity.plot import plot_overlay
@@ -175,7 +177,7 @@ def _print_compare(result, args: argparse.Namespace) -> None:
 
 def _web_first(args: argparse.Namespace) -> None:
     """``compare --web``: its settings and the port checked before anything is replayed."""
-    from ..errors import SettingError
+    # the studio's modules (viser: the optional web extra) only for --web
     from ..studio.net import check_host
     from ..studio.server import check_port, ensure_free, require_viser
 
@@ -188,6 +190,7 @@ def _web_first(args: argparse.Namespace) -> None:
 def _serve_compare(result, args: argparse.Namespace) -> int:
     """``compare --web``: the replay in the studio (the sim's arm, the real arm's ghost) until
     Ctrl-C (or SIGTERM, SIGHUP); the server stopped on the way out."""
+    # the studio's modules (viser: the optional web extra) only for --web
     from ..model import load_model
     from ..studio.compare import CompareStudio, Window
     from .studio import _UntilSignal, announce
@@ -221,6 +224,7 @@ def _eps(eps: list[int]) -> str:
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
+    # this command's modules, loaded when it runs (every other command starts without them)
     from ..fidelity.fit import fit
     from ..fidelity.fitparams import body_mean
     from ..fidelity.logs import parse_episodes

@@ -14,7 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from ..errors import MotionFileError, RecordingError
+from ..errors import MotionFileError, RecordingError, SettingError, So101SimError
 from .output import _say, say
 from .studio import add_web_options
 
@@ -211,8 +211,6 @@ def cmd_record(args: argparse.Namespace) -> int:
     try:
         run = run_script(args.script, script_args, args.output, **options)
     except Exception as exc:
-        from ..errors import So101SimError
-
         where = script_line(exc, args.script)  # the script's file:line, if it came from there
         if isinstance(exc, So101SimError):
             if not where:
@@ -236,6 +234,7 @@ def record_output(args: argparse.Namespace) -> str | None:
     """``record``'s video: ``-o PATH`` or ``--record PATH`` (the same option under the name
     ``run`` and ``hold`` use); None (no video) when only a log or a plot is asked for
     (``--log``, ``--plot``) or ``--web`` shows the script."""
+    # start-up: validation (NumPy) only when record runs
     from ..validation import check_path_text
 
     for name in ("output", "record"):  # an empty name is no path (not "no video")
@@ -269,6 +268,7 @@ def cmd_workspace(args: argparse.Namespace) -> int:
 
 
 def cmd_cache(args: argparse.Namespace) -> int:
+    # this command's modules, loaded when it runs (every other command starts without them)
     from ..model import cache as modelcache
 
     if args.action == "clear":
@@ -282,6 +282,7 @@ def cmd_cache(args: argparse.Namespace) -> int:
 
 
 def cmd_examples(args: argparse.Namespace) -> int:
+    # this command's modules, loaded when it runs (every other command starts without them)
     from ..lab.starter import copy_examples
 
     copied = copy_examples(args.folder, force=args.force)
@@ -293,7 +294,7 @@ def cmd_examples(args: argparse.Namespace) -> int:
 
 def cmd_grade(args: argparse.Namespace) -> int:
     """``so101sim grade LOG|FOLDER``: the lab hand-in(s) judged against the lab's spec."""
-    from ..errors import SettingError
+    # before the log reader's module imports MuJoCo: nothing is drawn, no OpenGL is set up
     from ..gl import skip_opengl
 
     skip_opengl()  # nothing is drawn (the log reader's module imports MuJoCo)

@@ -193,6 +193,7 @@ def _script_environment(path: Path, args: Sequence[str]) -> Iterator[None]:
 
 def _check_outputs(video: PathArg, options: dict[str, Any]) -> None:
     """The outputs of a script run, checked as :class:`Recorder` will check them."""
+    # start-up: the recording package (video, plot) only when a run writes outputs
     from ..recording.paths import check_distinct
     from ..recording.plot import PLOT_SUFFIXES
     from ..recording.video import VIDEO_SUFFIXES
