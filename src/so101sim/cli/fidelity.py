@@ -154,7 +154,8 @@ def _print_compare(result, args: argparse.Namespace) -> None:
     for name, e in result.joints.items():
         base = result.command_baseline[name]
         split = f"{_cell(result.holds.get(name))}{_cell(result.moves.get(name))}"
-        say(f"{name:<15}{e.mae:>9.2f}{e.rms:>8.2f}{e.max:>8.2f}{e.lag_s:>8.3f}{base:>13.2f}{split}")
+        lag = f"{e.lag_s:>8.3f}" if e.lag_s == e.lag_s else f"{'-':>8}"  # NaN: it never moved
+        say(f"{name:<15}{e.mae:>9.2f}{e.rms:>8.2f}{e.max:>8.2f}{lag}{base:>13.2f}{split}")
     better = sum(e.mae < result.command_baseline[n] for n, e in result.joints.items())
     say(
         f"(degrees; gripper 0-100) the sim is closer to the real arm than the commands on "
