@@ -192,6 +192,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         run_script,
         script_line,
         script_traceback,
+        written_before,
     )  # imported here: it imports MuJoCo
     from ..recording import VideoSettings
 
@@ -212,15 +213,16 @@ def cmd_record(args: argparse.Namespace) -> int:
         run = run_script(args.script, script_args, args.output, **options)
     except Exception as exc:
         where = script_line(exc, args.script)  # the script's file:line, if it came from there
+        if isinstance(exc, So101SimError) and not where:
+            raise
         if isinstance(exc, So101SimError):
-            if not where:
-                raise
             _say(f"so101sim: error: {where}: {exc}", err=True)
-            return 2
-        # the script's own error, as `python SCRIPT` shows it (not so101sim's frames)
-        say(script_traceback(exc, args.script), end="", file=sys.stderr)
-        say(f"so101sim: {where or args.script} raised {type(exc).__name__}", file=sys.stderr)
-        return 1
+        else:  # the script's own error, as `python SCRIPT` shows it (not so101sim's frames)
+            say(script_traceback(exc, args.script), end="", file=sys.stderr)
+            say(f"so101sim: {where or args.script} raised {type(exc).__name__}", file=sys.stderr)
+        for kind, path in written_before(exc).items():  # finished: what ran before the error
+            _say(f"so101sim: the {kind} holds what ran before the error: {path}", err=True)
+        return 2 if isinstance(exc, So101SimError) else 1
     if run.message:
         say(run.message, file=sys.stderr)
     for kind, path in run.outputs.items():
@@ -322,7 +324,12 @@ def cmd_grade(args: argparse.Namespace) -> int:
                 "--summary writes one row per student of a folder of hand-ins; expected a "
                 f"folder, not {args.handin!r} (or no --summary)"
             )
-        result = grade_log(args.handin, video=args.video, tolerances=tolerances)
+        try:
+            result = grade_log(args.handin, video=args.video, tolerances=tolerances)
+        except So101SimError as exc:  # not a log (or unreadable): an autograder still gets JSON
+            if args.json:
+                say(json.dumps({"log": str(args.handin), "passed": None, "error": str(exc)}))
+            raise
         say(json.dumps(grade_dict(result), indent=2) if args.json else format_grade(result))
         return 0 if result.passed else 1
     if args.video is not None:
