@@ -111,7 +111,21 @@ class So101VectorEnv(WorldChecks, VectorEnv):
             [e.model for e in self.envs], [e.sim.data for e in self.envs], nthread
         )
         self._obs = create_empty_array(self.single_observation_space, self.num_envs)
+        self._results: list[Any] = [None] * self.num_envs
+        # each world's observation, reward and info on the thread that stepped it, right after
+        # its physics (while the other threads step theirs): it touches that world only. Not
+        # with cameras: a renderer draws on the thread that made its context
+        self._after = None if first.cameras else self._finisher()
         self._closed = False
+
+    def _finisher(self) -> Any:
+        finish = [env._finish_step for env in self.envs]
+        results = self._results
+
+        def after(i: int) -> None:
+            results[i] = finish[i]()
+
+        return after
 
     @property
     def nthread(self) -> int:
@@ -151,14 +165,19 @@ class So101VectorEnv(WorldChecks, VectorEnv):
                 raise SettingError(f"world {i}: {exc}") from None
             env.sim.command_array(targets, check=False)
             steps[i] = env._physics_steps()
-        self._stepper.advance(steps)
+        results = self._results
+        self._stepper.advance(steps, self._after)
+        if self._after is None:  # frames to draw: on this thread (a renderer's GL context)
+            for i, env in enumerate(self.envs):
+                results[i] = env._finish_step()
         rewards = np.zeros(self.num_envs)
         terminated = np.zeros(self.num_envs, dtype=bool)
         truncated = np.zeros(self.num_envs, dtype=bool)
         infos: dict[str, Any] = {}
         observations, step_infos = [], []
         for i, env in enumerate(self.envs):
-            obs, rewards[i], terminated[i], truncated[i], info = env._finish_step()
+            obs, rewards[i], terminated[i], truncated[i], info = results[i]
+            results[i] = None
             if terminated[i] or truncated[i]:
                 infos = self._add_info(infos, {"final_obs": obs, "final_info": info}, i)
                 obs, info = env.reset()
