@@ -29,6 +29,7 @@ from ..errors import ClosedError, SettingError
 from ..sim.batched import WorldStepper
 from ..validation import check_count
 from .base import So101TaskEnv
+from .batch import WorldBatch
 from .run import make
 
 MAX_WORLDS = 65_536
@@ -112,14 +113,17 @@ class So101VectorEnv(WorldChecks, VectorEnv):
         )
         self._obs = create_empty_array(self.single_observation_space, self.num_envs)
         self._results: list[Any] = [None] * self.num_envs
-        # each world's observation, reward and info on the thread that stepped it, right after
-        # its physics (while the other threads step theirs): it touches that world only. Not
-        # with cameras: a renderer draws on the thread that made its context
+        self._batch = WorldBatch(self.envs)
+        # each world's reward and info (and its observation, unless taken for all the worlds
+        # at once) on the thread that stepped it, right after its physics (while the other
+        # threads step theirs): it touches that world only. Not with cameras: a renderer
+        # draws on the thread that made its context
         self._after = None if first.cameras else self._finisher()
         self._closed = False
 
     def _finisher(self) -> Any:
-        finish = [env._finish_step for env in self.envs]
+        batched = self._batch.batch_observations
+        finish = [env._judge_step if batched else env._finish_step for env in self.envs]
         results = self._results
 
         def after(i: int) -> None:
@@ -157,35 +161,60 @@ class So101VectorEnv(WorldChecks, VectorEnv):
         """
         self._check_open("step")
         actions = self._action_rows(actions)
-        steps = np.empty(self.num_envs, dtype=np.int64)
-        for i, env in enumerate(self.envs):
-            try:
-                targets = env.actions.targets(actions[i], env.sim.commanded_array())
-            except SettingError as exc:
-                raise SettingError(f"world {i}: {exc}") from None
-            env.sim.command_array(targets, check=False)
-            steps[i] = env._physics_steps()
+        self._command(actions)
+        steps = np.array([env._physics_steps() for env in self.envs], dtype=np.int64)
         results = self._results
+        batched = self._after is not None and self._batch.batch_observations
         self._stepper.advance(steps, self._after)
         if self._after is None:  # frames to draw: on this thread (a renderer's GL context)
             for i, env in enumerate(self.envs):
                 results[i] = env._finish_step()
+        elif batched:  # every world's observation at once, into the batch
+            self._batch.observe(self._obs)
         rewards = np.zeros(self.num_envs)
         terminated = np.zeros(self.num_envs, dtype=bool)
         truncated = np.zeros(self.num_envs, dtype=bool)
         infos: dict[str, Any] = {}
         observations, step_infos = [], []
         for i, env in enumerate(self.envs):
-            obs, rewards[i], terminated[i], truncated[i], info = results[i]
+            if batched:
+                obs = None
+                rewards[i], terminated[i], truncated[i], info = results[i]
+            else:
+                obs, rewards[i], terminated[i], truncated[i], info = results[i]
             results[i] = None
             if terminated[i] or truncated[i]:
+                if obs is None:
+                    obs = {k: v[i].copy() for k, v in self._obs.items()}
                 infos = self._add_info(infos, {"final_obs": obs, "final_info": info}, i)
                 obs, info = env.reset()
+                if batched:
+                    for k, v in obs.items():
+                        self._obs[k][i] = v
             observations.append(obs)
             step_infos.append(info)
         infos = self._stack_infos(infos, step_infos)
-        self._obs = concatenate(self.single_observation_space, observations, self._obs)
+        if not batched:
+            self._obs = concatenate(self.single_observation_space, observations, self._obs)
         return deepcopy(self._obs), rewards, terminated, truncated, infos
+
+    def _command(self, actions: np.ndarray) -> None:
+        """Every world's joint targets for its row of ``actions``: for all the worlds at once
+        where they allow it (:mod:`.batch`), else world by world.
+
+        Raises:
+            SettingError: an action is not valid (the message names the world).
+        """
+        valid = self._batch.valid_actions(actions) if self._batch.batch_actions else None
+        if valid is not None:
+            self._batch.command(valid)
+            return
+        for i, env in enumerate(self.envs):
+            try:
+                targets = env.actions.targets(actions[i], env.sim.commanded_array())
+            except SettingError as exc:
+                raise SettingError(f"world {i}: {exc}") from None
+            env.sim.command_array(targets, check=False)
 
     def _stack_infos(self, infos: dict[str, Any], each: list[dict[str, Any]]) -> dict[str, Any]:
         """Every world's ``info`` stacked as ``_add_info`` stacks it, the keys every world has
