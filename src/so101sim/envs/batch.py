@@ -113,11 +113,11 @@ class WorldBatch:
 
     def observe(self, out: dict[str, np.ndarray]) -> None:
         """Every world's observation, written into ``out`` (one row per world)."""
-        qpos = np.stack([d.qpos for d in self.datas])
+        qpos = np.array([d.qpos for d in self.datas])  # one row per world
         pos = self.units.from_radians(qpos[:, self.qpos])
         out["agent_pos"][:] = np.clip(pos, self.pos_low, self.pos_high).astype(np.float32)
         if self.velocities:
-            vel = np.stack([d.qvel for d in self.datas])[:, self.dof] / self.scale
+            vel = np.array([d.qvel for d in self.datas])[:, self.dof] / self.scale
             speed = np.clip(vel, -MAX_JOINT_SPEED, MAX_JOINT_SPEED)
             out["agent_vel"][:] = speed.astype(np.float32)
         if self.objects is not None:

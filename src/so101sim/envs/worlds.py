@@ -112,7 +112,8 @@ class So101VectorEnv(WorldChecks, VectorEnv):
             [e.model for e in self.envs], [e.sim.data for e in self.envs], nthread
         )
         self._obs = create_empty_array(self.single_observation_space, self.num_envs)
-        self._results: list[Any] = [None] * self.num_envs
+        self._no_results = [None] * self.num_envs
+        self._results: list[Any] = list(self._no_results)
         self._batch = WorldBatch(self.envs)
         # each world's reward and info (and its observation, unless taken for all the worlds
         # at once) on the thread that stepped it, right after its physics (while the other
@@ -171,28 +172,26 @@ class So101VectorEnv(WorldChecks, VectorEnv):
                 results[i] = env._finish_step()
         elif batched:  # every world's observation at once, into the batch
             self._batch.observe(self._obs)
-        rewards = np.zeros(self.num_envs)
-        terminated = np.zeros(self.num_envs, dtype=bool)
-        truncated = np.zeros(self.num_envs, dtype=bool)
+        if batched:
+            rew, term, trunc, each = zip(*results, strict=True)
+            observations: list[Any] = []
+        else:
+            obs_each, rew, term, trunc, each = zip(*results, strict=True)
+            observations = list(obs_each)
+        results[:] = self._no_results
+        rewards = np.array(rew, dtype=np.float64)
+        terminated, truncated = np.array(term, dtype=bool), np.array(trunc, dtype=bool)
+        step_infos = list(each)
         infos: dict[str, Any] = {}
-        observations, step_infos = [], []
-        for i, env in enumerate(self.envs):
+        for i in np.flatnonzero(terminated | truncated).tolist():
+            obs = {k: v[i].copy() for k, v in self._obs.items()} if batched else observations[i]
+            infos = self._add_info(infos, {"final_obs": obs, "final_info": step_infos[i]}, i)
+            obs, step_infos[i] = self.envs[i].reset()
             if batched:
-                obs = None
-                rewards[i], terminated[i], truncated[i], info = results[i]
+                for k, v in obs.items():
+                    self._obs[k][i] = v
             else:
-                obs, rewards[i], terminated[i], truncated[i], info = results[i]
-            results[i] = None
-            if terminated[i] or truncated[i]:
-                if obs is None:
-                    obs = {k: v[i].copy() for k, v in self._obs.items()}
-                infos = self._add_info(infos, {"final_obs": obs, "final_info": info}, i)
-                obs, info = env.reset()
-                if batched:
-                    for k, v in obs.items():
-                        self._obs[k][i] = v
-            observations.append(obs)
-            step_infos.append(info)
+                observations[i] = obs
         infos = self._stack_infos(infos, step_infos)
         if not batched:
             self._obs = concatenate(self.single_observation_space, observations, self._obs)
@@ -220,14 +219,16 @@ class So101VectorEnv(WorldChecks, VectorEnv):
         """Every world's ``info`` stacked as ``_add_info`` stacks it, the keys every world has
         with plain numbers at once (one array per key, not one call per world)."""
         every = np.ones(self.num_envs, dtype=bool)
-        keys = set(each[0])
-        if all(set(info) == keys for info in each):
+        keys = each[0].keys()
+        if all(info.keys() == keys for info in each):
             plain = [
                 k for k in each[0] if type(each[0][k]) in (bool, int, float) and k not in infos
             ]
             for k in plain:
                 infos[k] = np.array([info[k] for info in each], dtype=type(each[0][k]))
                 infos[f"_{k}"] = every.copy()
+            if len(plain) == len(keys):
+                return infos
             rest = [{k: v for k, v in info.items() if k not in plain} for info in each]
         else:
             rest = each
