@@ -5,7 +5,11 @@ Each world is a whole :class:`~so101sim.envs.So101TaskEnv` (its own compiled sce
 profile and randomisation, seeded on its own), so the observations, actions, rewards and
 ``info`` are those of N single environments, bit for bit; only the physics of a step is taken
 for all the worlds in one call, and Python runs once per world per environment step (never
-per physics step).
+per physics step). Where the worlds allow it (:mod:`.batch`), the actions' joint targets and
+the observations are computed for all the worlds at once (the same elementwise operations on
+one row per world), and each world's success test, reward and ``info`` run on the thread that
+stepped it, right after its physics, while the other threads are inside MuJoCo; resets (the
+random draws) and everything shared stay on the calling thread, in world order.
 
 Gymnasium 1.x conventions: ``metadata["autoreset_mode"]`` is ``AutoresetMode.SAME_STEP``: a
 world whose episode ended is reset within the same ``step()``; the observation returned is the
