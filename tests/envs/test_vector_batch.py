@@ -24,7 +24,9 @@ def test_the_batched_paths_are_taken_where_they_apply():
 
     assert flags("pick_cube") == (True, True, False)
     assert flags("pick_cube", control="joint_delta", joint_velocities=False) == (True, True, False)
-    assert flags("reach") == (True, False, False)  # reach adds its goal and tip: its own
+    assert flags("reach") == (True, True, False)  # its goal and tip taken world by world
+    assert flags("look_at") == (True, True, False)
+    assert flags("reach", randomize="light") == (True, True, False)  # a model per world
     assert flags("pick_cube", control="ee_delta") == (False, True, False)
     assert flags("pick_cube", cameras=["front"], image_size=(32, 32)) == (True, False, True)
 

@@ -79,6 +79,10 @@ class WorldBatch:
         self.velocities = e0.joint_velocities
         self.scale = self.units.scale
         self.objects = _object_index(e0) if e0.object_state else None
+        # a task's own numbers after the objects' poses: each world's, taken on its thread
+        self.extra = self.objects is not None and (
+            type(e0)._extra_state is not Observations._extra_state
+        )
         if self.objects is not None:
             box = space["environment_state"]
             n = len(self.objects)
@@ -111,8 +115,9 @@ class WorldBatch:
         for sim, row in zip(self.sims, q, strict=True):
             sim.command_radians(row)
 
-    def observe(self, out: dict[str, np.ndarray]) -> None:
-        """Every world's observation, written into ``out`` (one row per world)."""
+    def observe(self, out: dict[str, np.ndarray], extras: list[Any]) -> None:
+        """Every world's observation, written into ``out`` (one row per world); ``extras``:
+        each world's ``_extra_state()`` (if :attr:`extra`)."""
         qpos = np.array([d.qpos for d in self.datas])  # one row per world
         pos = self.units.from_radians(qpos[:, self.qpos])
         out["agent_pos"][:] = np.clip(pos, self.pos_low, self.pos_high).astype(np.float32)
@@ -122,7 +127,13 @@ class WorldBatch:
             out["agent_vel"][:] = speed.astype(np.float32)
         if self.objects is not None:
             state = qpos[:, self.objects].astype(np.float32)
-            out["environment_state"][:] = np.clip(state, self.state_low, self.state_high)
+            poses = np.clip(state, self.state_low, self.state_high)
+            if self.extra:
+                n = len(self.objects)
+                out["environment_state"][:, :n] = poses
+                out["environment_state"][:, n:] = np.array(extras).astype(np.float32)
+            else:
+                out["environment_state"][:] = poses
 
 
 __all__ = ["WorldBatch"]

@@ -118,6 +118,7 @@ class So101VectorEnv(WorldChecks, VectorEnv):
         self._obs = create_empty_array(self.single_observation_space, self.num_envs)
         self._no_results = [None] * self.num_envs
         self._results: list[Any] = list(self._no_results)
+        self._extras: list[Any] = list(self._no_results)
         self._batch = WorldBatch(self.envs)
         # each world's reward and info (and its observation, unless taken for all the worlds
         # at once) on the thread that stepped it, right after its physics (while the other
@@ -129,7 +130,15 @@ class So101VectorEnv(WorldChecks, VectorEnv):
     def _finisher(self) -> Any:
         batched = self._batch.batch_observations
         finish = [env._judge_step if batched else env._finish_step for env in self.envs]
-        results = self._results
+        results, extras = self._results, self._extras
+        if batched and self._batch.extra:
+            extra = [env._extra_state for env in self.envs]
+
+            def after_extra(i: int) -> None:
+                results[i] = finish[i]()
+                extras[i] = extra[i]()
+
+            return after_extra
 
         def after(i: int) -> None:
             results[i] = finish[i]()
@@ -175,7 +184,7 @@ class So101VectorEnv(WorldChecks, VectorEnv):
             for i, env in enumerate(self.envs):
                 results[i] = env._finish_step()
         elif batched:  # every world's observation at once, into the batch
-            self._batch.observe(self._obs)
+            self._batch.observe(self._obs, self._extras)
         if batched:
             rew, term, trunc, each = zip(*results, strict=True)
             observations: list[Any] = []
