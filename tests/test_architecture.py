@@ -436,3 +436,73 @@ def test_the_compile_site_check_finds_each_kind_of_call():
     )
     found = sorted(c for _, c in _compile_calls(ast.parse(code)))
     assert found == ["compile", "compile", "from_xml_path", "from_xml_string"]
+
+
+# Imports inside functions (issue 30: "lazy imports only where start-up needs them, commented"):
+# each function's first group of them says why they are there (start-up speed, an optional
+# dependency, a module of a layer above...), on its own lines or on the line just above; the
+# function's later imports (after a setting that must come first, in another branch) share it.
+def _uncommented_lazy_imports(source: str) -> list[tuple[int, str]]:
+    """``(line, text)`` of the first import of each function (outermost, methods included)
+    whose first group of consecutive imports, and the line above it, carry no comment."""
+    lines = source.splitlines()
+    hits: list[tuple[int, str]] = []
+
+    def first_group(fn: ast.AST) -> list[ast.stmt]:
+        blocks = [
+            block
+            for node in ast.walk(fn)
+            for block in (getattr(node, f, None) for f in ("body", "orelse", "finalbody"))
+            if isinstance(block, list) and block and isinstance(block[0], ast.stmt)
+        ]
+        groups = []
+        for block in blocks:
+            run: list[ast.stmt] = []
+            for stmt in [*block, None]:
+                if isinstance(stmt, ast.Import | ast.ImportFrom):
+                    run.append(stmt)
+                elif run:
+                    groups.append(run)
+                    run = []
+        return min(groups, key=lambda g: g[0].lineno) if groups else []
+
+    def functions(node: ast.AST, inside: bool) -> None:
+        for child in ast.iter_child_nodes(node):
+            is_fn = isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef)
+            if is_fn and not inside:
+                group = first_group(child)
+                if group:
+                    first, last = group[0].lineno, group[-1].end_lineno or group[-1].lineno
+                    if not any("#" in text for text in lines[max(first - 2, 0) : last]):
+                        hits.append((first, lines[first - 1].strip()))
+            functions(child, inside or is_fn)
+
+    functions(ast.parse(source), False)
+    return sorted(hits)
+
+
+def test_imports_inside_functions_say_why():
+    files = [p for p in PACKAGE.rglob("*.py") if "data" not in p.relative_to(PACKAGE).parts]
+    silent = [
+        f"{p.relative_to(PACKAGE)}:{line} {text}"
+        for p in files
+        for line, text in _uncommented_lazy_imports(p.read_text(encoding="utf-8"))
+    ]
+    assert not silent, (
+        f"{len(silent)} imports inside functions without a comment saying why (start-up, an "
+        f"optional dependency...); expected one on their lines or just above: {silent}"
+    )
+
+
+def test_the_lazy_import_check_finds_a_silent_import():
+    code = (
+        "import os\n"
+        "def a():\n    import json\n    return json\n"
+        "def b():\n    # start-up: matplotlib takes 0.3 s\n    import matplotlib\n"
+        "    from matplotlib import figure\n    return figure\n"
+        "def c():\n    if True:\n        import csv  # optional\n"
+        "def d():\n    x = 1\n    import re\n    from io import StringIO\n    return re, x\n"
+        "def e():\n    import io  # start-up\n    io.x = 1\n    import gzip\n"
+        "class F:\n    def g(self):\n        import bz2\n"
+    )
+    assert [line for line, _ in _uncommented_lazy_imports(code)] == [3, 15, 24]

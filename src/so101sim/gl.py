@@ -148,6 +148,7 @@ def ensure_offscreen_backend(loader: Callable[[str], bool] = _dlopen) -> str | N
         selection = "no display, and neither libEGL nor libOSMesa loads"
         return None
     try:
+        # MuJoCo's OpenGL modules only once a backend is chosen (importing them binds one)
         from mujoco.rendering.classic import gl_context
 
         if backend == "egl":
@@ -184,6 +185,7 @@ def renderer_string() -> str:
     if _renderer_string is None:
         prepare_for_rendering()
         try:
+            # MuJoCo's OpenGL modules only once a backend is chosen (importing them binds one)
             from mujoco.rendering.classic import gl_context
             from OpenGL import GL
 

@@ -176,3 +176,18 @@ def test_the_reports_in_docs_grading_are_what_grade_prints(tmp_path, monkeypatch
     capsys.readouterr()
     assert main(["grade", "too_slow.csv"]) == 1
     assert capsys.readouterr().out.splitlines() == _doc_block(doc, "so101sim grade too_slow.csv")
+
+
+def test_grade_json_of_what_is_not_a_log_is_json_too(tmp_path, capsys):
+    """Found by a new user: an autograder reading --json got nothing on stdout for a file that
+    is not a log; now one object with the error, beside the error line, exit 2."""
+    import json
+
+    path = tmp_path / "frank.csv"
+    path.write_text("name,score\nfrank,10\n")
+    assert main(["grade", str(path), "--json"]) == 2
+    captured = capsys.readouterr()
+    data = json.loads(captured.out)
+    assert data["log"] == str(path) and data["passed"] is None
+    assert "not the header of a so101sim log" in data["error"]
+    assert len(captured.err.strip().splitlines()) == 1

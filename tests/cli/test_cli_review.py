@@ -78,3 +78,27 @@ def test_check_variants_names_the_servo_model_it_perturbs(tmp_path, capsys):
     )
     main(["check", str(motion), "--variants", "2", "--threads", "1", "--json"])
     assert json.loads(capsys.readouterr().out)["servo_model"].startswith("sts3215 (")
+
+
+def test_a_script_that_fails_after_recording_says_which_files_hold_what_ran(tmp_path, capsys):
+    """Found by a new user: the video of a script that raised after opening its viewer was
+    finished (playable) but not mentioned; now each file is named after the error."""
+    script = tmp_path / "typo_lab.py"
+    script.write_text(
+        "import mujoco, mujoco.viewer\n"
+        "from so101sim import scene_path\n"
+        "m = mujoco.MjModel.from_xml_path(str(scene_path()))\n"
+        "d = mujoco.MjData(m)\n"
+        "with mujoco.viewer.launch_passive(m, d) as viewer:\n"
+        "    for _ in range(100):\n"
+        "        mujoco.mj_step(m, d)\n"
+        "        viewer.sync()\n"
+        "    hold_positon(m, d)\n"
+    )
+    log = tmp_path / "typo.csv"
+    assert main(["record", str(script), "--log", str(log)]) == 1
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[-2] == f"so101sim: {script}:9 raised NameError"
+    assert lines[-1] == f"so101sim: the log holds what ran before the error: {log}"
+    rows = log.read_text().splitlines()
+    assert rows[0].startswith("time,") and len(rows) > 50  # what ran: 0.2 s of steps

@@ -10,14 +10,15 @@ import pytest
 
 pytest.importorskip("pyarrow")
 
-from fidelity_helpers import record, true_arm, write_csv, write_lerobot
+from fidelity_helpers import commands, record, true_arm, write_csv, write_lerobot
 
 from so101sim.cli import main
 from so101sim.errors import CalibrationError
-from so101sim.fidelity.compare import compare
-from so101sim.fidelity.logs import LogError, parse_episodes, read_log
+from so101sim.fidelity.compare import compare, replay_episode
+from so101sim.fidelity.logs import Episode, LogError, parse_episodes, read_log
 from so101sim.model import default_units
 from so101sim.model.arm import profile_toml
+from so101sim.sim import Simulation
 from so101sim.units import JOINT_NAMES
 
 
@@ -151,3 +152,25 @@ def test_a_missing_optional_package_says_what_to_install(tmp_path, episodes, mon
         read_log(root, default_units(), units="degrees")
     # a CSV log needs no optional package
     assert compare(write_csv(tmp_path / "e.csv", episodes[0])).frames == len(episodes[0].times) - 1
+
+
+def test_a_joint_that_never_moves_has_no_lag(tmp_path, true_toml, capsys):
+    """A still joint matches the sim at every shift: no lag is printed for it (``-``, JSON
+    null), where the moving joints keep theirs."""
+    sim = Simulation(arm=true_arm())
+    t, cmd = commands(5, 2.0)
+    cmd[:, 4] = 10.0  # wrist_roll held at 10 degrees throughout
+    meas = replay_episode(sim, Episode(0, t, cmd, np.tile(cmd[0], (len(t), 1))))
+    root = write_lerobot(tmp_path / "ds", [Episode(0, t, cmd, meas)])
+    res = compare(root, arm=true_toml, units="degrees")
+    assert res.joints["wrist_roll"].lag_s != res.joints["wrist_roll"].lag_s  # NaN
+    assert abs(res.joints["elbow_flex"].lag_s) <= 1 / 30 + 1e-9
+    assert (
+        main(["compare", str(root), "--arm", str(true_toml), "--units", "degrees", "--json"]) == 0
+    )
+    obj = json.loads(capsys.readouterr().out)
+    assert obj["joints"]["wrist_roll"]["lag_s"] is None
+    assert isinstance(obj["joints"]["elbow_flex"]["lag_s"], float)
+    assert main(["compare", str(root), "--arm", str(true_toml), "--units", "degrees"]) == 0
+    row = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("wrist_roll"))
+    assert row.split()[4] == "-"  # joint, sim mae, rms, max, lag s

@@ -139,3 +139,12 @@ def test_without_a_display_pose_and_view_suggest_web(monkeypatch, capsys, comman
     assert cli.main(command) == 2
     err = capsys.readouterr().err.strip()
     assert f"so101sim {command[0]} --web" in err and len(err.splitlines()) == 1
+
+
+def test_the_warnings_quoted_in_the_docs_are_the_ones_given():
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "motions.md").read_text("utf-8")
+    m, d = _at(LOW)
+    block = "\n".join(f"warning: {w}" for w in pose_warnings(m, d))
+    assert f"```\n{block}\n```" in doc

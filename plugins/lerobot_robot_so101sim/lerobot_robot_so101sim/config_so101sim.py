@@ -24,7 +24,7 @@ from lerobot.teleoperators import TeleoperatorConfig
 from so101sim import load_motion
 from so101sim.errors import RobotConfigError
 from so101sim.model import arm_units, load_model
-from so101sim.robot import SO101SimFollowerConfig
+from so101sim.robot import RobotMode, SO101SimFollowerConfig
 from so101sim.units import STARTING_POSE
 from so101sim.validation import check_choice, check_count, check_range
 
@@ -100,7 +100,7 @@ class SO101SimConfig(RobotConfig):
     max_relative_target: float | dict[str, float] | None = None
     cameras: dict[str, CameraConfig] = field(default_factory=dict)
     use_degrees: bool = True
-    mode: str = "realtime"
+    mode: RobotMode = "realtime"
     """``realtime`` (default): the physics runs on its own at ``speed`` x real time, as a real
     arm moves while the loop waits. ``lockstep``: simulated time advances only with the loop,
     exactly ``1/fps`` per ``send_action``, so it matches the dataset's timestamps however

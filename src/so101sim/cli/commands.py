@@ -105,6 +105,7 @@ def _check_variants(args: argparse.Namespace, motion: Any, thresholds: Any) -> i
             motion, count=args.variants, seed=seed, threads=args.threads, **settings
         )
     else:
+        # Ray (an optional extra) only when --ray is given
         from ..preflight.distributed import run_on_ray
 
         job = pv.make_job(motion, count=args.variants, seed=seed, **settings)

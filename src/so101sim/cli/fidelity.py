@@ -10,6 +10,7 @@ import argparse
 import json
 import sys
 
+from ..errors import SettingError
 from .output import add_arm_option, say
 from .studio import add_web_options
 
@@ -109,6 +110,7 @@ def _warn(text: str) -> None:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
+    # this command's modules, loaded when it runs (every other command starts without them)
     from ..fidelity.compare import compare
     from ..fidelity.logs import parse_episodes
     from ..fidelity.plot import plot_overlay
@@ -152,7 +154,8 @@ def _print_compare(result, args: argparse.Namespace) -> None:
     for name, e in result.joints.items():
         base = result.command_baseline[name]
         split = f"{_cell(result.holds.get(name))}{_cell(result.moves.get(name))}"
-        say(f"{name:<15}{e.mae:>9.2f}{e.rms:>8.2f}{e.max:>8.2f}{e.lag_s:>8.3f}{base:>13.2f}{split}")
+        lag = f"{e.lag_s:>8.3f}" if e.lag_s == e.lag_s else f"{'-':>8}"  # NaN: it never moved
+        say(f"{name:<15}{e.mae:>9.2f}{e.rms:>8.2f}{e.max:>8.2f}{lag}{base:>13.2f}{split}")
     better = sum(e.mae < result.command_baseline[n] for n, e in result.joints.items())
     say(
         f"(degrees; gripper 0-100) the sim is closer to the real arm than the commands on "
@@ -175,7 +178,7 @@ def _print_compare(result, args: argparse.Namespace) -> None:
 
 def _web_first(args: argparse.Namespace) -> None:
     """``compare --web``: its settings and the port checked before anything is replayed."""
-    from ..errors import SettingError
+    # the studio's modules (viser: the optional web extra) only for --web
     from ..studio.net import check_host
     from ..studio.server import check_port, ensure_free, require_viser
 
@@ -188,6 +191,7 @@ def _web_first(args: argparse.Namespace) -> None:
 def _serve_compare(result, args: argparse.Namespace) -> int:
     """``compare --web``: the replay in the studio (the sim's arm, the real arm's ghost) until
     Ctrl-C (or SIGTERM, SIGHUP); the server stopped on the way out."""
+    # the studio's modules (viser: the optional web extra) only for --web
     from ..model import load_model
     from ..studio.compare import CompareStudio, Window
     from .studio import _UntilSignal, announce
@@ -221,6 +225,7 @@ def _eps(eps: list[int]) -> str:
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
+    # this command's modules, loaded when it runs (every other command starts without them)
     from ..fidelity.fit import fit
     from ..fidelity.fitparams import body_mean
     from ..fidelity.logs import parse_episodes

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import importlib.util
+import os
 import sys
 from typing import Any
 
@@ -186,13 +187,12 @@ def add_learning_commands(sub: SubParsers) -> None:
 
 
 def _workers(value: int | None) -> int:
-    import os
-
     return value if value is not None else max(1, len(os.sched_getaffinity(0)))
 
 
 def cmd_dataset(args: argparse.Namespace) -> int:
     module = plugin_module("dataset")
+    # start-up: the progress bar's module only when a dataset is written
     from tqdm import tqdm
 
     settings = module.DatasetSettings(
@@ -237,6 +237,7 @@ def cmd_dataset(args: argparse.Namespace) -> int:
 
 def cmd_eval(args: argparse.Namespace) -> int:
     module = plugin_module("eval")
+    # start-up: the progress bar's module only when a policy is evaluated
     from tqdm import tqdm
 
     settings = module.EvalSettings(
@@ -276,6 +277,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 
 def cmd_policy_check(args: argparse.Namespace) -> int:
+    # this command's modules, loaded when it runs (every other command starts without them)
     from ..robot.policycheck import check_policy
 
     result = check_policy(args.policy, args.robot_config)

@@ -86,8 +86,9 @@ def _command(
     summary: str,
     *parents: argparse.ArgumentParser,
 ) -> argparse.ArgumentParser:
-    """Add the subcommand ``name``, run by ``func``, with the options of ``parents``."""
-    p = sub.add_parser(name, help=summary, parents=list(parents))
+    """Add the subcommand ``name``, run by ``func``, with the options of ``parents``; its
+    ``summary`` heads its own ``--help`` too."""
+    p = sub.add_parser(name, help=summary, description=f"{summary}.", parents=list(parents))
     p.set_defaults(func=func)
     return p
 
@@ -136,7 +137,10 @@ def build_parser() -> argparse.ArgumentParser:
         linger=False,
     )
     _command(sub, "model-path", cmd_model_path, "print the folder holding the shipped model")
-    summary = "pose the arm in the viewer; prints each pose as a Python dict and as TOML"
+    summary = (
+        "pose the arm in the viewer (or --web); prints each pose as a Python dict and as TOML, "
+        "with a warning when the tip or a part of the arm is below the floor or in the table"
+    )
     add_web_options(_command(sub, "pose", cmd_pose, summary, model), linger=False)
     summary = "simulate a motion file headless and judge it before hardware: PASS/FAIL"
     _add_check_options(_command(sub, "check", cmd_check, summary, model, arm, strict))

@@ -64,6 +64,7 @@ def add_arm_option(parser: Any) -> None:
 
 def format_segment(seg: SegmentResult) -> str:
     """A phase's report: target, reached pose, largest tracking error."""
+    # start-up: the units module (NumPy) only when a report is printed
     from ..units import format_pose, format_value
 
     joint, err = seg.worst_tracking_error
@@ -89,6 +90,7 @@ def _progress_bar(frames: int | None) -> tqdm | None:
     """A bar on stderr counting the video's frames (None without a video)."""
     if frames is None:
         return None
+    # start-up: tqdm only when a video is recorded
     from tqdm import tqdm
 
     return tqdm(

@@ -26,6 +26,7 @@ if TYPE_CHECKING:
 def _prepare_rendering(args: argparse.Namespace) -> None:
     """With --record, choose MuJoCo's OpenGL backend (EGL or OSMesa without a display) before
     MuJoCo is first imported; with --headless and no --record nothing draws: no backend."""
+    # before anything imports MuJoCo: the OpenGL backend is chosen first
     from ..gl import prepare_for_rendering, skip_opengl
 
     if args.record:

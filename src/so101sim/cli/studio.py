@@ -78,6 +78,7 @@ def announce(url: str, what: str = "the studio", studio: Any = None) -> None:
         where = f"; listening on {', '.join(studio.listening)}, {scope}"
     if in_notebook():
         with contextlib.suppress(Exception):
+            # optional: IPython only inside a notebook
             from IPython.display import HTML, display
 
             display(HTML(f'{what}: <a href="{url}" target="_blank">{url}</a>{where}'))
@@ -126,6 +127,7 @@ class _UntilSignal:
 
 
 def _studio(model: Any, args: argparse.Namespace, **kwargs: Any) -> Studio:
+    # the studio (viser: the optional web extra) only for --web
     from ..studio import Studio
 
     studio = Studio(model, host=args.host, port=args.port, **kwargs)
@@ -147,6 +149,7 @@ def _serving(studio: Studio) -> Iterator[Studio]:
 
 def _linger(studio: Studio, seconds: float) -> None:
     """Keep the finished run on the page for ``seconds`` (a signal: at once)."""
+    # the studio (viser: the optional web extra) only for --web
     from ..studio.server import check_linger
 
     seconds = check_linger(seconds)
@@ -164,6 +167,7 @@ def _linger(studio: Studio, seconds: float) -> None:
 # ---------------------------------------------------------------------------- view
 def view_web(args: argparse.Namespace) -> int:
     """``view --web``: the model held at its starting pose, simulated live, until a signal."""
+    # this command's modules, loaded when it runs (every other command starts without them)
     from ..model import load_model
     from ..sim.simulation import Pacer, Simulation
     from ..studio.live import StudioObserver
@@ -189,6 +193,7 @@ class WebRun:
     studio's observer for the run (at ``--speed``), and ``--linger`` seconds after it."""
 
     def __init__(self, args: argparse.Namespace) -> None:
+        # the model and the studio (viser: the optional web extra) only for --web
         from ..model import load_model
         from ..studio.server import check_linger, check_port, ensure_free, require_viser
 
@@ -200,6 +205,7 @@ class WebRun:
         self.studio: Studio | None = None
 
     def observers(self, run: Any) -> list[Any]:
+        # the studio (viser: the optional web extra) only for --web
         from ..studio.live import StudioObserver
 
         self.studio = _studio(run.sim.model, self.args)
@@ -235,6 +241,7 @@ def web_run(args: argparse.Namespace) -> Iterator[WebRun | None]:
 def pose_web(args: argparse.Namespace) -> int:
     """``pose --web``: a slider per joint in the browser; each pose printed here (with a
     warning line when the tip or a part of the arm is below the floor or in the table)."""
+    # this command's modules, loaded when it runs (every other command starts without them)
     from ..studio.net import check_host
     from ..studio.pose import PoseStudio
 
@@ -257,6 +264,7 @@ def pose_web(args: argparse.Namespace) -> int:
 
 def format_pose(change: Any, *, with_time: bool = False) -> str:
     """A pose as the pose finders print it: a dict, a TOML line, the tip, the warnings."""
+    # start-up: the pose finder's formatting (it imports MuJoCo) only when a pose is printed
     from ..viewer.posefinder import format_python, format_toml
 
     when = f" (t = {change.time:.1f} s)" if with_time else ""
@@ -275,6 +283,7 @@ def format_pose(change: Any, *, with_time: bool = False) -> str:
 def demo_web(args: argparse.Namespace, format_figures: Any) -> int:
     """``demo TASK --web``: the scripted expert's episode live in the studio
     (``format_figures``: cli_demo's, passed in: this module imports no other command)."""
+    # this command's modules, loaded when it runs (every other command starts without them)
     from ..envs import env_id
     from ..envs.run import make, run_episode
     from ..recording import VideoRecorder, VideoSettings
@@ -326,6 +335,7 @@ def record_web(args: argparse.Namespace, options: dict[str, Any]) -> int:
     """``record SCRIPT --web``: the student's script live in the studio as it runs (its
     ``launch_passive`` viewer draws in the page, paced to real time); with ``-o`` recorded
     too."""
+    # this command's modules, loaded when it runs (every other command starts without them)
     from ..lab.handin import run_script
     from ..studio.live import StudioViewer
     from ..studio.server import check_linger, check_port, ensure_free, require_viser

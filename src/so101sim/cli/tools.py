@@ -14,7 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from ..errors import MotionFileError, RecordingError
+from ..errors import MotionFileError, RecordingError, SettingError, So101SimError
 from .output import _say, say
 from .studio import add_web_options
 
@@ -192,6 +192,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         run_script,
         script_line,
         script_traceback,
+        written_before,
     )  # imported here: it imports MuJoCo
     from ..recording import VideoSettings
 
@@ -211,18 +212,17 @@ def cmd_record(args: argparse.Namespace) -> int:
     try:
         run = run_script(args.script, script_args, args.output, **options)
     except Exception as exc:
-        from ..errors import So101SimError
-
         where = script_line(exc, args.script)  # the script's file:line, if it came from there
+        if isinstance(exc, So101SimError) and not where:
+            raise
         if isinstance(exc, So101SimError):
-            if not where:
-                raise
             _say(f"so101sim: error: {where}: {exc}", err=True)
-            return 2
-        # the script's own error, as `python SCRIPT` shows it (not so101sim's frames)
-        say(script_traceback(exc, args.script), end="", file=sys.stderr)
-        say(f"so101sim: {where or args.script} raised {type(exc).__name__}", file=sys.stderr)
-        return 1
+        else:  # the script's own error, as `python SCRIPT` shows it (not so101sim's frames)
+            say(script_traceback(exc, args.script), end="", file=sys.stderr)
+            say(f"so101sim: {where or args.script} raised {type(exc).__name__}", file=sys.stderr)
+        for kind, path in written_before(exc).items():  # finished: what ran before the error
+            _say(f"so101sim: the {kind} holds what ran before the error: {path}", err=True)
+        return 2 if isinstance(exc, So101SimError) else 1
     if run.message:
         say(run.message, file=sys.stderr)
     for kind, path in run.outputs.items():
@@ -236,6 +236,7 @@ def record_output(args: argparse.Namespace) -> str | None:
     """``record``'s video: ``-o PATH`` or ``--record PATH`` (the same option under the name
     ``run`` and ``hold`` use); None (no video) when only a log or a plot is asked for
     (``--log``, ``--plot``) or ``--web`` shows the script."""
+    # start-up: validation (NumPy) only when record runs
     from ..validation import check_path_text
 
     for name in ("output", "record"):  # an empty name is no path (not "no video")
@@ -269,6 +270,7 @@ def cmd_workspace(args: argparse.Namespace) -> int:
 
 
 def cmd_cache(args: argparse.Namespace) -> int:
+    # this command's modules, loaded when it runs (every other command starts without them)
     from ..model import cache as modelcache
 
     if args.action == "clear":
@@ -282,6 +284,7 @@ def cmd_cache(args: argparse.Namespace) -> int:
 
 
 def cmd_examples(args: argparse.Namespace) -> int:
+    # this command's modules, loaded when it runs (every other command starts without them)
     from ..lab.starter import copy_examples
 
     copied = copy_examples(args.folder, force=args.force)
@@ -293,7 +296,7 @@ def cmd_examples(args: argparse.Namespace) -> int:
 
 def cmd_grade(args: argparse.Namespace) -> int:
     """``so101sim grade LOG|FOLDER``: the lab hand-in(s) judged against the lab's spec."""
-    from ..errors import SettingError
+    # before the log reader's module imports MuJoCo: nothing is drawn, no OpenGL is set up
     from ..gl import skip_opengl
 
     skip_opengl()  # nothing is drawn (the log reader's module imports MuJoCo)
@@ -321,7 +324,12 @@ def cmd_grade(args: argparse.Namespace) -> int:
                 "--summary writes one row per student of a folder of hand-ins; expected a "
                 f"folder, not {args.handin!r} (or no --summary)"
             )
-        result = grade_log(args.handin, video=args.video, tolerances=tolerances)
+        try:
+            result = grade_log(args.handin, video=args.video, tolerances=tolerances)
+        except So101SimError as exc:  # not a log (or unreadable): an autograder still gets JSON
+            if args.json:
+                say(json.dumps({"log": str(args.handin), "passed": None, "error": str(exc)}))
+            raise
         say(json.dumps(grade_dict(result), indent=2) if args.json else format_grade(result))
         return 0 if result.passed else 1
     if args.video is not None:

@@ -54,6 +54,7 @@ def import_warp(device: str) -> tuple[Any, Any]:
             no CUDA device is there.
     """
     try:
+        # optional extra (warp): only the GPU backend needs MuJoCo Warp
         import warp
 
         warp.config.quiet = True  # before mujoco_warp initialises it: the library never prints

@@ -99,6 +99,7 @@ def fit_bench(
     scored by) of the servo's ``names`` on ``runs``: residuals are the position errors at every
     ``every``-th sample of every run, each run weighted by 1/sqrt(its length) so that every run
     counts alike."""
+    # scipy (the optional fidelity extra), checked with a message naming it
     from .deps import need
 
     optimize = need("scipy.optimize", "scipy")

@@ -28,6 +28,9 @@ from .windows import Window, still_frames, with_stall, worst_windows
 __all__ = ["CompareResult", "compare", "replay_episode"]
 
 MAX_LAG_S = 0.5
+MIN_LAG_MOTION = 1.0
+"""A lag is found only for a joint whose real trace moves at least this much in an episode
+(arm units: degrees, gripper 0-100): a still joint matches at every shift (its lag: NaN)."""
 
 
 @dataclass(frozen=True)
@@ -61,15 +64,15 @@ class CompareResult:
     gripper_blocked_frames: int = 0
 
     def to_json(self) -> dict[str, Any]:
-        """The ``--json`` object: ``frames``, ``episodes``, ``joints`` {mae, rms, max, lag_s},
-        ``command_baseline`` {mae}, ``holds`` and ``moves`` (mae while each joint's command
-        holds still / moves; null where there is none), ``worst_windows`` [{episode, t0, t1,
-        mae, joint}], ``gripper_blocked_frames``."""
+        """The ``--json`` object: ``frames``, ``episodes``, ``joints`` {mae, rms, max, lag_s
+        (null for a joint that never moved)}, ``command_baseline`` {mae}, ``holds`` and
+        ``moves`` (mae while each joint's command holds still / moves; null where there is
+        none), ``worst_windows`` [{episode, t0, t1, mae, joint}], ``gripper_blocked_frames``."""
         return {
             "frames": int(self.frames),
             "episodes": [int(e) for e in self.episodes],
             "joints": {
-                n: {"mae": e.mae, "rms": e.rms, "max": e.max, "lag_s": e.lag_s}
+                n: {"mae": e.mae, "rms": e.rms, "max": e.max, "lag_s": _num(e.lag_s)}
                 for n, e in self.joints.items()
             },
             "command_baseline": {n: {"mae": v} for n, v in self.command_baseline.items()},
@@ -85,6 +88,16 @@ class CompareResult:
 
 def _num(v: float) -> float | None:
     return None if not np.isfinite(v) else float(v)
+
+
+def _mean_lag(lags: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Per joint, the episodes' lags (``(episodes, joints)``) averaged by their lengths over the
+    episodes where the joint moved (NaN where it moved in none)."""
+    found = np.isfinite(lags)
+    w = np.where(found, weights[:, None], 0.0)
+    total = w.sum(axis=0)
+    summed = (np.where(found, lags, 0.0) * w).sum(axis=0)
+    return np.where(total > 0, summed / np.where(total > 0, total, 1.0), np.nan)
 
 
 def _split_mae(err: np.ndarray, mask: np.ndarray) -> dict[str, float]:
@@ -120,8 +133,11 @@ def replay_episode(sim: Simulation, episode: Episode) -> np.ndarray:
 
 def _lag(real: np.ndarray, sim: np.ndarray, period: float) -> float:
     """The shift (s) of the sim that best matches the real trace (positive: the real arm lags
-    the sim), searched within ±:data:`MAX_LAG_S`."""
+    the sim), searched within ±:data:`MAX_LAG_S`; NaN for a real trace that moves less than
+    :data:`MIN_LAG_MOTION` (any shift matches it as well)."""
     n = len(real)
+    if n == 0 or float(np.ptp(real)) < MIN_LAG_MOTION:
+        return float("nan")
     k_max = min(int(MAX_LAG_S / period), n // 2)
     best, best_k = np.inf, 0
     for k in range(-k_max, k_max + 1):
@@ -191,7 +207,7 @@ def compare(
         lags.append([_lag(ep.measured[:, j], pred[:, j], period) for j in range(len(JOINT_NAMES))])
     r, s, c, st, ok = (np.concatenate(x) for x in (real, simd, cmd, still, used))
     weights = np.array([len(e.times) for e in data.episodes], dtype=float)
-    lag = np.average(np.array(lags), axis=0, weights=weights)
+    lag = _mean_lag(np.array(lags), weights)
     err = s - r
     joints = {}
     for j, n in enumerate(JOINT_NAMES):

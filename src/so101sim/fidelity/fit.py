@@ -387,6 +387,7 @@ def _heldout(held_eps, best, start, model, threads, run) -> tuple:
 
 
 def _plain_model(path: str | Path | None) -> mujoco.MjModel:
+    # start-up: the model loader only when a fit has no model given
     from ..model.load import load_model
 
     return load_model(path)

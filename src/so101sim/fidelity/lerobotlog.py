@@ -130,6 +130,7 @@ def _short(exc: Exception) -> str:
 
 def _column(col, name: str, path: Path) -> np.ndarray:
     """A parquet column as floats: ``(rows,)``, or ``(rows, n)`` for a list column."""
+    # pyarrow (an optional extra) only when a LeRobot dataset is read
     import pyarrow as pa
 
     col = col.combine_chunks() if isinstance(col, pa.ChunkedArray) else col

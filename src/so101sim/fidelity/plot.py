@@ -83,6 +83,7 @@ def overlay_figure(result: CompareResult) -> Any:
     """The matplotlib ``Figure`` of :func:`plot_overlay` (one panel per joint)."""
     if not result.traces:
         raise ValueError("compare(..., keep_traces=True) keeps what the plot draws")
+    # start-up: matplotlib (~0.3 s) only when a plot is drawn
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -137,6 +138,7 @@ def overlay_figure(result: CompareResult) -> Any:
 def plot_overlay(result: CompareResult, path: str | Path, *, force: bool = False) -> Path:
     """Real, sim and command per joint over the compared episodes (:func:`overlay_figure`),
     written to ``path`` (PNG) atomically."""
+    # start-up: the recording package only when a plot is written
     from ..recording.paths import check_output_path, write_atomically
 
     out = check_output_path(path, force=force, what="plot")

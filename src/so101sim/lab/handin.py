@@ -193,6 +193,7 @@ def _script_environment(path: Path, args: Sequence[str]) -> Iterator[None]:
 
 def _check_outputs(video: PathArg, options: dict[str, Any]) -> None:
     """The outputs of a script run, checked as :class:`Recorder` will check them."""
+    # start-up: the recording package (video, plot) only when a run writes outputs
     from ..recording.paths import check_distinct
     from ..recording.plot import PLOT_SUFFIXES
     from ..recording.video import VIDEO_SUFFIXES
@@ -222,7 +223,8 @@ def run_script(
     :func:`record` takes them: ``title``, ``width``, ``fps``, ``plot``, ``log``, …) and
     ``time.time``/``monotonic``/``perf_counter``/``sleep`` follow the simulated time of the
     data the viewer was opened on (see :mod:`so101sim.lab.simclock`). The script's output and
-    exceptions pass through (an exception propagates after the files are finished); its
+    exceptions pass through (an exception propagates after the files are finished:
+    :func:`written_before` names them); its
     exit status is returned.
 
     ``arm`` (an option): an arm profile for the models the script runs (see
@@ -250,6 +252,7 @@ def run_script(
     session = _Session(clock, video, options, live, say)
     status, message = 0, ""
     clocked = simulated_time(clock) if live is None else contextlib.nullcontext()
+    outputs: dict[str, Path] = {}
     try:
         with (
             _script_environment(path, args),
@@ -261,7 +264,11 @@ def run_script(
                 runpy.run_path(str(path), run_name="__main__")
             except SystemExit as exc:
                 status, message = _exit_status(exc.code)
-    finally:
+    except BaseException as exc:  # the script's own error: it goes up with what was written
+        outputs = session.close()
+        setattr(exc, _WRITTEN, dict(outputs))
+        raise
+    else:
         outputs = session.close()
     if session.viewer is None:
         raise NothingRecordedError(
@@ -271,6 +278,16 @@ def run_script(
         )
     servo = servo_model(session.viewer.sim.model)
     return ScriptRun(status, outputs, clock.elapsed(), message, servo)
+
+
+_WRITTEN = "so101sim_outputs"
+
+
+def written_before(exc: BaseException) -> dict[str, Path]:
+    """The files :func:`run_script` finished before ``exc`` (the script's own error, or an
+    interrupt) went up: ``{"video": path, ...}`` (empty when the script never opened its
+    viewer or nothing was asked for)."""
+    return dict(getattr(exc, _WRITTEN, {}))
 
 
 def script_line(exc: BaseException, script: str | os.PathLike[str]) -> str:
@@ -340,4 +357,5 @@ __all__ = [
     "run_script",
     "script_line",
     "script_traceback",
+    "written_before",
 ]

@@ -53,6 +53,7 @@ _VERIFY_TIMEOUT_S = 600.0
 
 def ffmpeg_exe() -> str:
     """The ffmpeg executable of ``imageio-ffmpeg`` (imported here only to keep start-up fast)."""
+    # start-up: imageio-ffmpeg only when a video is encoded
     import imageio_ffmpeg
 
     return str(imageio_ffmpeg.get_ffmpeg_exe())

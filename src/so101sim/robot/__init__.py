@@ -12,6 +12,7 @@ wrap it).
 """
 
 from .cameras import SimCamera
+from .config import RobotMode
 from .follower import (
     GRIPPER_TORQUE_FRACTION,
     MODES,
@@ -29,6 +30,7 @@ __all__ = [
     "MODES",
     "MOTOR_KEYS",
     "VIEWER_QUALITIES",
+    "RobotMode",
     "RobotScene",
     "SO101SimFollower",
     "SO101SimFollowerConfig",

@@ -168,6 +168,7 @@ class FeetechLeaderBus:
 
 def _import_sdk() -> Any:
     try:
+        # optional: the Feetech SDK only for a real leader arm
         import scservo_sdk
     except ImportError:
         raise LeaderError(

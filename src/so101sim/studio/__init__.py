@@ -40,6 +40,7 @@ def attach(sim: Any, *, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, spee
     """Serve a studio showing ``sim`` (a :class:`~so101sim.sim.Simulation`) and add its
     observer to ``sim.observers``: every move and hold is then shown live at ``speed`` times
     real time. Returns the :class:`Studio` (``close()`` it; ``finish()`` to replay the run)."""
+    # start-up: the simulation and the live studio only when attached
     from ..sim.simulation import Pacer
     from .live import StudioObserver
 

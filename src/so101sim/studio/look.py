@@ -46,6 +46,7 @@ def _texture(model: mujoco.MjModel, matid: int) -> np.ndarray | None:
 def floor_mesh(model: mujoco.MjModel, geom: int) -> Any:
     """A trimesh square for plane ``geom``: its material's texture tiled as MuJoCo tiles it
     (``texrepeat`` per metre with ``texuniform``), or its flat colour."""
+    # trimesh and PIL come with the optional web extra (viser): only the studio needs them
     import trimesh
     from PIL import Image
 
@@ -82,6 +83,7 @@ def floor_mesh(model: mujoco.MjModel, geom: int) -> Any:
 def model_floor(server: Any, model: mujoco.MjModel) -> int:
     """Draw each plane of a fixed body with its own material, in place of mjviser's grid
     (the same scene node's name replaces it); returns the number of planes drawn."""
+    # mjviser: the optional web extra, only for the studio
     from mjviser.conversions import get_body_name, is_fixed_body
 
     drawn = 0

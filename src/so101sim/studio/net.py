@@ -248,6 +248,7 @@ def quiet_viser() -> Any:
     """viser prints its address box and "Server stopped" with ``rich.print`` whatever its
     ``verbose``; the library never prints: while starting and stopping, they go to the log."""
     try:
+        # rich comes with viser (the optional web extra)
         import rich
     except ImportError:  # viser without rich: nothing to quiet
         yield

@@ -58,6 +58,7 @@ INSTALL_HINT = 'pip install "so101sim[web]"'
 def require_viser() -> tuple[Any, Any]:
     """``(viser, mjviser.ViserMujocoScene)``, or :class:`StudioError` naming the extra."""
     try:
+        # viser and mjviser: the optional web extra (StudioError names it)
         import viser
         from mjviser import ViserMujocoScene
     except ImportError as exc:

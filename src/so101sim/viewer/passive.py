@@ -268,6 +268,7 @@ def _check_can_open(quality: str, mirror: bool) -> None:
 def _launch_passive(
     m: mujoco.MjModel, d: mujoco.MjData, *, show_ui: bool, key_callback: Any
 ) -> Any:
+    # mujoco.viewer (GLFW) only when a window opens: it needs a display
     import mujoco.viewer
 
     try:
@@ -351,6 +352,7 @@ def view(m: mujoco.MjModel, d: mujoco.MjData) -> None:
             "to see it in a web browser instead (no display needed), or on a server "
             "`xvfb-run so101sim view`, or record a video"
         )
+    # mujoco.viewer (GLFW) only when a window opens: it needs a display
     import mujoco.viewer
 
     mujoco.viewer.launch(m, d)
