@@ -283,14 +283,19 @@ class So101TaskEnv(Observations, SceneState, gym.Env):
         return max(1, round((k + 1) * self._period_steps) - round(k * self._period_steps))
 
     def _finish_step(self) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
-        """After a control period's physics (here or in a batch, :mod:`.vector`): count the
+        """After a control period's physics (here or in a batch, :mod:`.worlds`): count the
         step, judge the task, and answer as :meth:`step` does."""
+        reward, terminated, truncated, info = self._judge_step()
+        return self._observation(), reward, terminated, truncated, info
+
+    def _judge_step(self) -> tuple[float, bool, bool, dict[str, Any]]:
+        """:meth:`_finish_step` but the observation (a vector env takes its worlds' at once)."""
         self._steps += 1
         ev = self.evaluate()
         reward = ev.dense if self.reward_mode == "dense" else float(ev.success)
         terminated = bool(ev.success and self.terminate_on_success)
         truncated = self._steps >= self.max_episode_steps and not terminated
-        return self._observation(), float(reward), terminated, truncated, self._info(ev)
+        return float(reward), terminated, truncated, self._info(ev)
 
     def _advance(self, targets: np.ndarray) -> None:
         """Hold ``targets`` for one control period. With observers (a video) or a viewer, the

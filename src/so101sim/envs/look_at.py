@@ -106,13 +106,11 @@ class LookAtEnv(LookAtTask, So101TaskEnv):
             )
         return space
 
-    def _observation(self) -> dict[str, Any]:
-        obs = super()._observation()
-        if self.object_state:
-            uv = self.seen_at()
-            uv = np.zeros(2) if uv is None else np.clip(uv, -1e3, 1e3)
-            obs["environment_state"] = np.r_[obs["environment_state"], uv].astype(np.float32)
-        return obs
+    def _extra_state(self) -> np.ndarray:
+        """Where the wrist camera sees the cube (0, 0 behind the lens), after the objects'
+        poses in ``environment_state``."""
+        uv = self.seen_at()
+        return np.zeros(2) if uv is None else np.clip(uv, -1e3, 1e3)
 
 
 class LookAtExpert:

@@ -62,11 +62,19 @@ class Observations:
             obs["environment_state"] = np.clip(
                 state, space.low[: len(state)], space.high[: len(state)]
             )
+            extra = self._extra_state()
+            if extra is not None:  # a task's own numbers after the objects' poses
+                obs["environment_state"] = np.r_[obs["environment_state"], extra].astype(np.float32)
         if self.cameras:
             obs["pixels"] = {
                 c: self._renderer(c, self.image_size).render(sim.data).copy() for c in self.cameras
             }
         return obs
+
+    def _extra_state(self) -> np.ndarray | None:
+        """What a task adds to ``environment_state`` after the objects' poses (floats; None:
+        nothing)."""
+        return None
 
 
 def check_size(value: object, what: str) -> tuple[int, int]:

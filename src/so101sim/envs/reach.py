@@ -99,12 +99,9 @@ class ReachEnv(ReachTask, So101TaskEnv):
             )
         return space
 
-    def _observation(self) -> dict[str, Any]:
-        obs = super()._observation()
-        if self.object_state:
-            extra = np.r_[self.goal, self.tip()]
-            obs["environment_state"] = np.r_[obs["environment_state"], extra].astype(np.float32)
-        return obs
+    def _extra_state(self) -> np.ndarray:
+        """The target and the tip, after the objects' poses in ``environment_state``."""
+        return np.r_[self.goal, self.tip()]
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None

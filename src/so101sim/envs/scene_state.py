@@ -41,6 +41,7 @@ class SceneState:
             for o in scene.objects
         }
         self._tip_site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "gripperframe")
+        self._geom_body: list[int] = model.geom_bodyid.tolist()  # the body of each geom
 
     def remember_start(self) -> None:
         """Take the objects' poses now as the episode's start poses (:meth:`start_pose`)."""
@@ -63,15 +64,19 @@ class SceneState:
     def touching(self, name: str) -> tuple[bool, bool]:
         """Whether the fixed and the moving jaw's pads touch object ``name``."""
         d = self.sim.data
-        if d.ncon == 0:
+        n = d.ncon
+        if n == 0:
             return False, False
-        bodies = self.model.geom_bodyid[d.contact.geom[: d.ncon]]  # (ncon, 2)
-        geoms = d.contact.geom[: d.ncon]
-        on_object = (bodies == self._bodies[name]).any(axis=1)
+        # a few contacts: plain Python over them is cheaper than numpy's calls (a vector env
+        # asks this of every world every step)
+        body, target = self._geom_body, self._bodies[name]
         fixed, moving = self._pads
-        return bool((on_object & (geoms == fixed).any(axis=1)).any()), bool(
-            (on_object & (geoms == moving).any(axis=1)).any()
-        )
+        on_fixed = on_moving = False
+        for a, b in d.contact.geom[:n].tolist():
+            if body[a] == target or body[b] == target:
+                on_fixed = on_fixed or fixed in (a, b)
+                on_moving = on_moving or moving in (a, b)
+        return on_fixed, on_moving
 
     def grasped(self, name: str) -> bool:
         """Both jaws' pads touch object ``name``."""

@@ -5,7 +5,11 @@ Each world is a whole :class:`~so101sim.envs.So101TaskEnv` (its own compiled sce
 profile and randomisation, seeded on its own), so the observations, actions, rewards and
 ``info`` are those of N single environments, bit for bit; only the physics of a step is taken
 for all the worlds in one call, and Python runs once per world per environment step (never
-per physics step).
+per physics step). Where the worlds allow it (:mod:`.batch`), the actions' joint targets and
+the observations are computed for all the worlds at once (the same elementwise operations on
+one row per world), and each world's success test, reward and ``info`` run on the thread that
+stepped it, right after its physics, while the other threads are inside MuJoCo; resets (the
+random draws) and everything shared stay on the calling thread, in world order.
 
 Gymnasium 1.x conventions: ``metadata["autoreset_mode"]`` is ``AutoresetMode.SAME_STEP``: a
 world whose episode ended is reset within the same ``step()``; the observation returned is the
@@ -29,6 +33,7 @@ from ..errors import ClosedError, SettingError
 from ..sim.batched import WorldStepper
 from ..validation import check_count
 from .base import So101TaskEnv
+from .batch import WorldBatch
 from .run import make
 
 MAX_WORLDS = 65_536
@@ -111,7 +116,34 @@ class So101VectorEnv(WorldChecks, VectorEnv):
             [e.model for e in self.envs], [e.sim.data for e in self.envs], nthread
         )
         self._obs = create_empty_array(self.single_observation_space, self.num_envs)
+        self._no_results = [None] * self.num_envs
+        self._results: list[Any] = list(self._no_results)
+        self._extras: list[Any] = list(self._no_results)
+        self._batch = WorldBatch(self.envs)
+        # each world's reward and info (and its observation, unless taken for all the worlds
+        # at once) on the thread that stepped it, right after its physics (while the other
+        # threads step theirs): it touches that world only. Not with cameras: a renderer
+        # draws on the thread that made its context
+        self._after = None if first.cameras else self._finisher()
         self._closed = False
+
+    def _finisher(self) -> Any:
+        batched = self._batch.batch_observations
+        finish = [env._judge_step if batched else env._finish_step for env in self.envs]
+        results, extras = self._results, self._extras
+        if batched and self._batch.extra:
+            extra = [env._extra_state for env in self.envs]
+
+            def after_extra(i: int) -> None:
+                results[i] = finish[i]()
+                extras[i] = extra[i]()
+
+            return after_extra
+
+        def after(i: int) -> None:
+            results[i] = finish[i]()
+
+        return after
 
     @property
     def nthread(self) -> int:
@@ -143,43 +175,73 @@ class So101VectorEnv(WorldChecks, VectorEnv):
         """
         self._check_open("step")
         actions = self._action_rows(actions)
-        steps = np.empty(self.num_envs, dtype=np.int64)
+        self._command(actions)
+        steps = np.array([env._physics_steps() for env in self.envs], dtype=np.int64)
+        results = self._results
+        batched = self._after is not None and self._batch.batch_observations
+        self._stepper.advance(steps, self._after)
+        if self._after is None:  # frames to draw: on this thread (a renderer's GL context)
+            for i, env in enumerate(self.envs):
+                results[i] = env._finish_step()
+        elif batched:  # every world's observation at once, into the batch
+            self._batch.observe(self._obs, self._extras)
+        if batched:
+            rew, term, trunc, each = zip(*results, strict=True)
+            observations: list[Any] = []
+        else:
+            obs_each, rew, term, trunc, each = zip(*results, strict=True)
+            observations = list(obs_each)
+        results[:] = self._no_results
+        rewards = np.array(rew, dtype=np.float64)
+        terminated, truncated = np.array(term, dtype=bool), np.array(trunc, dtype=bool)
+        step_infos = list(each)
+        infos: dict[str, Any] = {}
+        for i in np.flatnonzero(terminated | truncated).tolist():
+            obs = {k: v[i].copy() for k, v in self._obs.items()} if batched else observations[i]
+            infos = self._add_info(infos, {"final_obs": obs, "final_info": step_infos[i]}, i)
+            obs, step_infos[i] = self.envs[i].reset()
+            if batched:
+                for k, v in obs.items():
+                    self._obs[k][i] = v
+            else:
+                observations[i] = obs
+        infos = self._stack_infos(infos, step_infos)
+        if not batched:
+            self._obs = concatenate(self.single_observation_space, observations, self._obs)
+        return deepcopy(self._obs), rewards, terminated, truncated, infos
+
+    def _command(self, actions: np.ndarray) -> None:
+        """Every world's joint targets for its row of ``actions``: for all the worlds at once
+        where they allow it (:mod:`.batch`), else world by world.
+
+        Raises:
+            SettingError: an action is not valid (the message names the world).
+        """
+        valid = self._batch.valid_actions(actions) if self._batch.batch_actions else None
+        if valid is not None:
+            self._batch.command(valid)
+            return
         for i, env in enumerate(self.envs):
             try:
                 targets = env.actions.targets(actions[i], env.sim.commanded_array())
             except SettingError as exc:
                 raise SettingError(f"world {i}: {exc}") from None
             env.sim.command_array(targets, check=False)
-            steps[i] = env._physics_steps()
-        self._stepper.advance(steps)
-        rewards = np.zeros(self.num_envs)
-        terminated = np.zeros(self.num_envs, dtype=bool)
-        truncated = np.zeros(self.num_envs, dtype=bool)
-        infos: dict[str, Any] = {}
-        observations, step_infos = [], []
-        for i, env in enumerate(self.envs):
-            obs, rewards[i], terminated[i], truncated[i], info = env._finish_step()
-            if terminated[i] or truncated[i]:
-                infos = self._add_info(infos, {"final_obs": obs, "final_info": info}, i)
-                obs, info = env.reset()
-            observations.append(obs)
-            step_infos.append(info)
-        infos = self._stack_infos(infos, step_infos)
-        self._obs = concatenate(self.single_observation_space, observations, self._obs)
-        return deepcopy(self._obs), rewards, terminated, truncated, infos
 
     def _stack_infos(self, infos: dict[str, Any], each: list[dict[str, Any]]) -> dict[str, Any]:
         """Every world's ``info`` stacked as ``_add_info`` stacks it, the keys every world has
         with plain numbers at once (one array per key, not one call per world)."""
         every = np.ones(self.num_envs, dtype=bool)
-        keys = set(each[0])
-        if all(set(info) == keys for info in each):
+        keys = each[0].keys()
+        if all(info.keys() == keys for info in each):
             plain = [
                 k for k in each[0] if type(each[0][k]) in (bool, int, float) and k not in infos
             ]
             for k in plain:
                 infos[k] = np.array([info[k] for info in each], dtype=type(each[0][k]))
                 infos[f"_{k}"] = every.copy()
+            if len(plain) == len(keys):
+                return infos
             rest = [{k: v for k, v in info.items() if k not in plain} for info in each]
         else:
             rest = each

@@ -140,6 +140,13 @@ class ArmTargets:
         with self.lock:
             self._set_target(self.units.to_radians(v))
 
+    def command_radians(self, q: np.ndarray) -> None:
+        """Set all six position targets from radians: ``units.to_radians`` of six finite
+        values inside the limits, converted by the caller (a vector environment converts
+        every world's at once); :meth:`command_array` with ``check=False`` in one step."""
+        with self.lock:
+            self._set_target(q)
+
     def command_joints(self, indices: list[int], values: list[float]) -> None:
         """Deprecated: :func:`so101sim.sim.fastpath.command_joints` (or :meth:`command`)."""
         deprecated("Simulation.command_joints()", "so101sim.sim.fastpath.command_joints(sim)")

@@ -5,10 +5,12 @@ stepped together, in C, on several cores.
 :func:`so101sim.sim.stepping.advance_unobserved` steps one world (``mj_step(nstep)``), and
 bit for bit the same physics: each world goes through ``mujoco.rollout`` on its own
 ``MjData``, from its whole state and warm start, so the data ends holding that world's last
-step (contacts, site poses, warm start) exactly as ``mj_step`` leaves it. ``nthread`` worker
-threads take a contiguous share of the worlds each; ``mujoco.rollout`` lets go of Python's
-lock while it steps, so the worlds' physics runs on all the threads at once, and Python runs
-once per world per call (never per physics step).
+step (contacts, site poses, warm start) exactly as ``mj_step`` leaves it. ``nthread`` threads
+(the calling one and ``nthread - 1`` workers) each take the next world nobody has taken yet;
+``mujoco.rollout`` lets go of Python's lock while it steps, so the worlds' physics runs on all
+the threads at once, and Python runs once per world per call (never per physics step). A
+caller's Python for a world (``advance(after=...)``: an environment's observation and reward)
+runs on the thread that stepped it, right after, while the other threads are inside MuJoCo.
 
 Why not one ``rollout`` call over all the worlds: its ``MjData`` are the threads' scratch
 space, not the worlds' (a world's data would not end holding its own contacts and warm
@@ -24,6 +26,7 @@ from __future__ import annotations
 
 import os
 import threading
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -58,22 +61,35 @@ class _World:
         self.warm = np.empty((1, m.nv))
         self.n = 0
         self.ctrl = np.empty((1, 0, m.nu))
-        self.states = np.empty((1, 0, state_size(m)))
-        self.sensors = np.empty((1, 0, m.nsensordata))
 
-    def buffers(self, n: int) -> None:
-        if self.n != n:
-            m = self.m
-            self.n = n
-            self.ctrl = np.empty((1, n, m.nu))
-            self.states = np.empty((1, n, state_size(m)))
-            self.sensors = np.empty((1, n, m.nsensordata))
+    def step(self, runner: Any, k: int) -> bool:
+        """Step ``k`` times holding ``d.ctrl``; False if MuJoCo reset the data (diverged)."""
+        m, d = self.m, self.d
+        if self.n != k:
+            self.n = k
+            self.ctrl = np.empty((1, k, m.nu))
+        mujoco.mj_getState(m, d, self.s0[0], _STATE)
+        self.warm[0] = d.qacc_warmstart
+        self.ctrl[0] = d.ctrl
+        # no states or sensor values recorded: the world's data ends holding the last step
+        runner.rollout(
+            [m],
+            [d],
+            self.s0,
+            self.ctrl,
+            control_spec=_CTRL,
+            skip_checks=True,
+            nstep=k,
+            initial_warmstart=self.warm,
+        )
+        return d.time >= self.s0[0, 0] + (k - 0.5) * m.opt.timestep
 
 
 class WorldStepper:
     """Steps N worlds together (see the module's text). ``models`` and ``datas``: one of each
-    per world (a model may be shared); ``nthread``: worker threads (default: the cores this
-    process may use; at most one per world). Close it (or use ``with``) to stop the threads.
+    per world (a model may be shared); ``nthread``: threads that step (default: the cores this
+    process may use; at most one per world; the calling thread is one of them). Close it (or
+    use ``with``) to stop the threads.
 
     Raises:
         SettingError: no worlds, a different number of models and datas, or a bad ``nthread``.
@@ -94,11 +110,9 @@ class WorldStepper:
         self.nthread = min(threads, n)
         self.advice = advice
         self._worlds = [_World(m, d) for m, d in zip(models, datas, strict=True)]
-        share = -(-n // self.nthread)
-        self._groups = [range(i, min(n, i + share)) for i in range(0, n, share)]
         self._local = threading.local()
         self._pool: ThreadPoolExecutor | None = (
-            ThreadPoolExecutor(self.nthread, thread_name_prefix="so101sim-batch")
+            ThreadPoolExecutor(self.nthread - 1, thread_name_prefix="so101sim-batch")
             if self.nthread > 1
             else None
         )
@@ -110,67 +124,72 @@ class WorldStepper:
 
     def _runner(self) -> Any:
         r = getattr(self._local, "runner", None)
-        if r is None:  # one runner per worker thread; it steps on the calling thread
+        if r is None:  # one runner per thread; it steps on the calling thread
             r = self._local.runner = _rollout.Rollout(nthread=0)
         return r
 
-    def _step_group(self, group: range, steps: np.ndarray) -> None:
+    def _work(self, claim: Any, counts: np.ndarray, after: Any, errors: dict) -> None:
+        """Take the next world not yet taken (``claim``) until none is left: step it, check
+        it, then ``after(i)`` on this thread while the other threads step theirs."""
         runner = self._runner()
-        for i in group:
-            k = int(steps[i])
-            if k <= 0:
-                continue
-            w = self._worlds[i]
-            m, d = w.m, w.d
-            w.buffers(k)
-            mujoco.mj_getState(m, d, w.s0[0], _STATE)
-            w.warm[0] = d.qacc_warmstart
-            w.ctrl[0] = d.ctrl
-            runner.rollout(
-                [m],
-                [d],
-                w.s0,
-                w.ctrl,
-                control_spec=_CTRL,
-                skip_checks=True,
-                nstep=k,
-                initial_warmstart=w.warm,
-                state=w.states,
-                sensordata=w.sensors,
-            )
+        worlds = self._worlds
+        for i in claim:
+            try:
+                k = int(counts[i])
+                if k > 0 and not worlds[i].step(runner, k):
+                    self._diverged(i, k)
+                if after is not None:
+                    after(i)
+            except Exception as exc:  # raised by advance(), the lowest world first
+                errors[i] = exc
 
-    def advance(self, steps: np.ndarray | list[int] | int) -> None:
+    def _diverged(self, i: int, k: int) -> None:
+        """World ``i`` diverged: step it again from its start by ``step_block``, whose check
+        finds the last good state and raises."""
+        w = self._worlds[i]
+        mujoco.mj_setState(w.m, w.d, w.s0[0], _STATE)
+        step_block(
+            w.m, w.d, np.repeat(w.d.ctrl[None], k, axis=0), advice=f"world {i}: {self.advice}"
+        )
+
+    def advance(
+        self, steps: np.ndarray | list[int] | int, after: Callable[[int], Any] | None = None
+    ) -> None:
         """Step world ``i`` ``steps[i]`` times (an int: every world that many), each holding
-        its ``d.ctrl``, then check every world for divergence.
+        its ``d.ctrl``, and check every world for divergence; then ``after(i)`` (if given),
+        on the thread that stepped world ``i``, right after it (while the other threads step
+        other worlds): it must touch world ``i`` only. Every world is stepped and checked
+        whatever another one did; the error of the lowest world that failed is raised.
 
         Raises:
             SimulationDivergedError: a world's physics became unstable (the message names it
                 and ends with the stepper's advice).
             ClosedError: the stepper was closed, or the interpreter is exiting.
+            Exception: what ``after`` raised.
         """
         if self._closed:
             raise ClosedError("advance() on a closed WorldStepper; expected an open one")
         counts = np.broadcast_to(np.asarray(steps, dtype=np.int64), (self.num_worlds,))
+        # one shared iterator: each world is taken once (next() on it holds Python's lock), by
+        # whichever thread is free, so the threads stay busy however uneven the worlds are;
+        # the results do not depend on which thread took which world
+        claim = iter(range(self.num_worlds))
+        errors: dict[int, Exception] = {}
         with mujoco_call():  # refused once the interpreter exits (exitgate)
             if self._pool is None:
-                self._step_group(self._groups[0], counts)
+                self._work(claim, counts, after, errors)
             else:
-                jobs = [self._pool.submit(self._step_group, g, counts) for g in self._groups]
-                for job in jobs:
-                    job.result()
-        for i, w in enumerate(self._worlds):
-            k = int(counts[i])
-            if k <= 0:
-                continue
-            t0 = float(w.s0[0, 0])
-            if w.d.time < t0 + (k - 0.5) * w.m.opt.timestep:  # MuJoCo reset it: diverged
-                mujoco.mj_setState(w.m, w.d, w.s0[0], _STATE)
-                step_block(
-                    w.m,
-                    w.d,
-                    np.repeat(w.d.ctrl[None], k, axis=0),
-                    advice=f"world {i}: {self.advice}",
-                )
+                jobs = [
+                    self._pool.submit(self._work, claim, counts, after, errors)
+                    for _ in range(self.nthread - 1)
+                ]
+                try:
+                    self._work(claim, counts, after, errors)
+                finally:
+                    for job in jobs:
+                        job.result()
+        if errors:
+            raise errors[min(errors)]
 
     def close(self) -> None:
         """Stop the worker threads (harmless to repeat)."""
