@@ -98,13 +98,19 @@ class ActionMap:
                 f"action {shown(action)} is invalid; expected {self.space.shape[0]} finite "
                 f"numbers for control mode {self.settings.mode!r}"
             )
+        if self.settings.mode in ("joint", "joint_delta"):
+            return self.joint_targets(a, commanded)
+        return self._ee_targets(np.clip(a, self.space.low, self.space.high), commanded)
+
+    def joint_targets(self, a: np.ndarray, commanded: np.ndarray | None) -> np.ndarray:
+        """The targets of valid (finite) ``joint``/``joint_delta`` actions: one action, or one
+        row per world with ``commanded`` one row per world (a vector environment's worlds at
+        once, elementwise: the same numbers as world by world). ``commanded`` is read only by
+        ``joint_delta``."""
         a = np.clip(a, self.space.low, self.space.high)
-        mode = self.settings.mode
-        if mode == "joint":
+        if self.settings.mode == "joint":
             return np.clip(a, self.lower, self.upper)
-        if mode == "joint_delta":
-            return np.clip(commanded + a, self.lower, self.upper)
-        return self._ee_targets(a, commanded)
+        return np.clip(commanded + a, self.lower, self.upper)
 
     def _ee_targets(self, a: np.ndarray, commanded: np.ndarray) -> np.ndarray:
         bounds = np.array(EE_WORKSPACE_M)

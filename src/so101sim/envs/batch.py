@@ -54,8 +54,7 @@ class WorldBatch:
         )
         a0 = e0.actions
         self.mode = a0.settings.mode
-        self.act_low, self.act_high = a0.space.low, a0.space.high
-        self.lower, self.upper = a0.lower, a0.upper
+        self.act_shape = a0.space.shape
         self.batch_actions = (
             same_arm
             and self.mode in _BATCHED_MODES
@@ -98,20 +97,17 @@ class WorldBatch:
             a = np.asarray(actions, dtype=float).reshape(len(self.envs), -1)
         except (TypeError, ValueError, OverflowError):
             return None
-        if a.shape[1:] != self.act_low.shape or not np.isfinite(a).all():
+        if a.shape[1:] != self.act_shape or not np.isfinite(a).all():
             return None
         return a
 
     def command(self, a: np.ndarray) -> None:
         """Set every world's joint targets for its row of ``a`` (valid: :meth:`valid_actions`),
         as ``env.actions.targets`` and ``env.sim.command_array(check=False)`` set them."""
-        a = np.clip(a, self.act_low, self.act_high)
-        if self.mode == "joint":
-            targets = np.clip(a, self.lower, self.upper)
-        else:  # joint_delta: from what each world commands now
+        commanded = None
+        if self.mode == "joint_delta":  # from what each world commands now
             commanded = np.stack([sim.commanded_array() for sim in self.sims])
-            targets = np.clip(commanded + a, self.lower, self.upper)
-        q = self.units.to_radians(targets)
+        q = self.units.to_radians(self.envs[0].actions.joint_targets(a, commanded))
         for sim, row in zip(self.sims, q, strict=True):
             sim.command_radians(row)
 
