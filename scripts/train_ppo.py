@@ -40,9 +40,24 @@ ENV_KWARGS: dict[str, dict[str, Any]] = {
         "max_delta": 20.0,
         "episode_seconds": 2.5,
     },
-    # the tip and the gripper (4 numbers), the tool's pitch (-50 degrees at the start pose)
-    # and roll held; 5 s episodes
-    "pick_cube": {"control": "ee_delta", "control_hz": 10.0, "episode_seconds": 5.0},
+    # the tip and the gripper (4 numbers), the tool's pitch and roll held as they start: from
+    # PICK_START, pointing straight down (from the folded rest pose the held pitch is -50
+    # degrees, and jaws closing along an axis tilted 40 degrees up pinched the cube in 4 of
+    # 10 hand-driven episodes against 19 of 20 top-down: docs/rl.md); 5 s episodes
+    "pick_cube": {
+        "control": "ee_delta",
+        "control_hz": 10.0,
+        "episode_seconds": 5.0,
+        "initial_pose": {
+            # the tip 8 cm above the table at x = 0.20 m, pitch -89.9, roll 0.01 degrees
+            "shoulder_pan": 0.0,
+            "shoulder_lift": -12.1,
+            "elbow_flex": 11.4,
+            "wrist_flex": 90.6,
+            "wrist_roll": 2.8,
+            "gripper": 0.0,
+        },
+    },
 }
 TASK_OF = {"reach_joint": "reach"}
 """Recipes on another recipe's task (the same task, other settings)."""
@@ -54,6 +69,14 @@ tool's pitch, roll and the gripper held (0, 0, closed): what a reach needs, as M
 
 POSITION_GRIPPER = {"pick_cube"}
 """Recipes whose policy moves the tip and sets the gripper (4 numbers)."""
+TIP_FEATURES = {"pick_cube"}
+"""Recipes whose policy also sees where the tip is and the cube from the point between the
+jaws (6 numbers, from the joint positions by forward kinematics and the cube's pose in the
+state): an MLP need not learn the arm's geometry from a few hundred thousand steps, as
+ManiSkill's state observations give ``tcp_pose`` and ``tcp_to_obj_pos``."""
+GRIP_OFFSET_M = 0.014
+"""The point between the jaws lies this far along the tool's z axis from the tip (metres),
+as so101sim.envs.scene_state's ``grip_centre``."""
 
 
 def action_size(recipe: str, full: int) -> int:
@@ -72,9 +95,29 @@ def full_action(recipe: str, a: np.ndarray, low: np.ndarray, high: np.ndarray) -
     return low + (a + 1.0) * 0.5 * (high - low)
 
 
-def flatten(obs: dict[str, np.ndarray]) -> np.ndarray:
-    """The state keys side by side: (num_envs, features) float32."""
-    return np.concatenate([np.asarray(obs[k], dtype=np.float32) for k in OBS_KEYS], axis=-1)
+def flatten(obs: dict[str, np.ndarray], recipe: str | None = None) -> np.ndarray:
+    """The state keys side by side: (num_envs, features) float32; for the recipes of
+    :data:`TIP_FEATURES` the tip's position and the cube less the point between the jaws
+    after them."""
+    parts = [np.asarray(obs[k], dtype=np.float32) for k in OBS_KEYS]
+    if recipe in TIP_FEATURES:
+        parts.append(tip_features(obs["agent_pos"], obs["environment_state"]))
+    return np.concatenate(parts, axis=-1)
+
+
+def tip_features(joints: np.ndarray, state: np.ndarray) -> np.ndarray:
+    """(n, 6) float32: the tip's position (metres, base frame) for each row of joint positions
+    (arm units), and the object's position (``state``'s first three) less the point between
+    the jaws."""
+    from so101sim.kinematics import for_model
+
+    kin = for_model()
+    out = np.empty((len(joints), 6), dtype=np.float32)
+    for i, row in enumerate(np.asarray(joints, dtype=float)):
+        tip = kin.tip_array(row)
+        out[i, :3] = tip.position
+        out[i, 3:] = np.asarray(state[i][:3]) - (tip.position + GRIP_OFFSET_M * tip.rotation[:, 2])
+    return out
 
 
 def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
@@ -104,7 +147,7 @@ def make_venv(
             where = {"backend": "ray", "address": ray} if ray else {"nthread": nthread}
             self.venv = make_vec(TASK_OF.get(task, task), num_envs, **where, **kwargs)
             single = self.venv.single_observation_space
-            size = sum(single[k].shape[0] for k in OBS_KEYS)
+            size = sum(single[k].shape[0] for k in OBS_KEYS) + 6 * (task in TIP_FEATURES)
             obs_space = spaces.Box(-np.inf, np.inf, (size,), dtype=np.float32)
             act = self.venv.single_action_space
             self.low, self.high = act.low, act.high
@@ -114,31 +157,38 @@ def make_venv(
             self._seed = seed
             self._actions: np.ndarray | None = None
             self.successes: deque[float] = deque(maxlen=100)
+            self.returns: deque[float] = deque(maxlen=100)
+            self._return = np.zeros(num_envs)
             self._ever = np.zeros(num_envs, dtype=bool)
 
         def reset(self) -> np.ndarray:
             obs, _ = self.venv.reset(seed=self._seed)
             self._seed += num_envs
             self._ever[:] = False
-            return flatten(obs)
+            self._return[:] = 0.0
+            return flatten(obs, task)
 
         def step_async(self, actions: np.ndarray) -> None:
             self._actions = full_action(task, actions, self.low, self.high)
 
         def step_wait(self) -> tuple:
             obs, rew, term, trunc, info = self.venv.step(self._actions)
-            flat = flatten(obs)
+            flat = flatten(obs, task)
             done = term | trunc
+            self._return += rew
             self._ever |= np.asarray(info.get("is_success", np.zeros(num_envs)), dtype=bool)
             infos: list[dict[str, Any]] = [{} for _ in range(num_envs)]
             for i in np.flatnonzero(done):
                 final = info["final_obs"][i]  # the world's own observation (gymnasium 1.x)
-                infos[i]["terminal_observation"] = flatten({k: final[k][None] for k in OBS_KEYS})[0]
+                last = {k: final[k][None] for k in OBS_KEYS}
+                infos[i]["terminal_observation"] = flatten(last, task)[0]
                 infos[i]["TimeLimit.truncated"] = bool(trunc[i] and not term[i])
                 success = bool(self._ever[i] or info["final_info"]["is_success"][i])
                 infos[i]["is_success"] = success
                 self.successes.append(float(success))
                 self._ever[i] = False
+                self.returns.append(float(self._return[i]))
+                self._return[i] = 0.0
             return flat, rew.astype(np.float32), done, infos
 
         def close(self) -> None:
@@ -178,7 +228,7 @@ def evaluate(task: str, model: Any, norm: Any, episodes: int, video: Path | None
         obs, info = env.reset(seed=10_000 + ep)
         ever, done = False, False
         while not done:
-            x = norm.normalize_obs(flatten({k: obs[k][None] for k in OBS_KEYS}))
+            x = norm.normalize_obs(flatten({k: obs[k][None] for k in OBS_KEYS}, task))
             a, _ = model.predict(x, deterministic=True)
             a = full_action(task, a, act.low, act.high)[0]
             obs, _, term, trunc, info = env.step(a)
@@ -283,6 +333,7 @@ def main(argv: list[str] | None = None) -> int:
                     "minutes": round(minutes, 3),
                     "success_last100": round(rate, 3),
                     "episodes_seen": len(raw.successes),
+                    "return_last100": round(float(np.mean(raw.returns)), 3) if raw.returns else 0.0,
                 }
             )
             with (args.out / "progress.csv").open("w", newline="") as f:
