@@ -53,3 +53,24 @@ def test_ppo_smoke_run_with_its_worlds_on_ray(tmp_path):
     import ray
 
     assert not ray.is_initialized()  # closing the environment stopped the Ray it started
+
+
+def test_pick_recipe_starts_top_down_and_sees_the_cube_from_between_the_jaws():
+    """The PickCube recipe's start pose points the tool straight down (its held pitch), and the
+    features it adds are the tip and the cube less the point between the jaws, as the
+    environment's own ``grip_centre`` puts it."""
+    from so101sim.envs import make
+
+    train = _load()
+    env = make("pick_cube", **train.ENV_KWARGS["pick_cube"]).unwrapped
+    try:
+        obs, _ = env.reset(seed=3)
+        assert env.actions._pitch == pytest.approx(-90.0, abs=0.5)
+        flat = train.flatten({k: obs[k][None] for k in train.OBS_KEYS}, "pick_cube")
+        assert flat.shape == (1, 6 + 6 + 7 + 6)
+        tip = env.sim.data.site_xpos[env._tip_site]
+        cube = env.object_pose("cube")[:3]
+        assert np.allclose(flat[0, -6:-3], tip, atol=1e-4)
+        assert np.allclose(flat[0, -3:], cube - env.grip_centre(), atol=1e-4)
+    finally:
+        env.close()
