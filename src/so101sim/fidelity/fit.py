@@ -337,12 +337,13 @@ def fit(
         calls[0] += len(zs)
         z0 = zs[int(np.argmin([float(np.mean(np.abs(p - real)[used])) for p in preds]))]
     sol = None
-    for step, share in zip(FD_STEPS, (1.0, 0.5), strict=True):
-        sol = optimize.least_squares(
-            fun, z0 if sol is None else sol.x, jac=lambda z, h=step: jac(z, h), bounds=(lo, hi),
-            x_scale="jac", loss="soft_l1", f_scale=0.5 * data_w,
-            max_nfev=max(3, round(max_evaluations * share)),
-        )  # fmt: skip
+    for step, budget in zip(FD_STEPS, (max_evaluations, max_evaluations // 2), strict=True):
+        if budget >= 1:  # the narrow steps get half the budget again
+            sol = optimize.least_squares(
+                fun, z0 if sol is None else sol.x, jac=lambda z, h=step: jac(z, h),
+                bounds=(lo, hi), x_scale="jac", loss="soft_l1", f_scale=0.5 * data_w,
+                max_nfev=budget,
+            )  # fmt: skip
     frames = sol.fun[:n_res].reshape(real.shape) / data_w  # arm units, 0 where not used
     se = standard_errors(sol.jac, frames, [len(e.times) for e in fit_eps], data_w) * scale
     values: dict[str, dict[str, float]] = {}
