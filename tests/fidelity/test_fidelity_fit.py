@@ -3,6 +3,7 @@ fit recovers its parameters and predicts a held-out motion within 0.5°."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 pytest.importorskip("scipy")
@@ -40,6 +41,8 @@ def test_fit_recovers_the_hidden_arm_and_predicts_held_out_motion(episodes):
             got = res.values[joint][name]
             assert got == pytest.approx(getattr(want, name), rel=0.08), (joint, name)
             assert 0 < res.stderr[joint][name] < 0.1 * got
+            # within its uncertainty (a reading step's noise at least: this log is read exactly)
+            assert abs(got - getattr(want, name)) <= 3 * res.stderr[joint][name], (joint, name)
     assert res.values["*"]["delay_s"] == pytest.approx(0.047, abs=0.003)
     assert res.heldout_error is not None and res.start_heldout_error is not None
     for name in JOINT_NAMES:
@@ -69,3 +72,22 @@ def test_cli_fit_writes_a_profile_compare_accepts(tmp_path, episodes, capsys):
     # nothing half-done: an existing output is refused before any work
     assert main(["fit", str(root), "-o", str(out), "--units", "degrees"]) == 2
     assert "exists" in capsys.readouterr().err
+
+
+def test_standard_errors_count_an_error_that_lasts_many_frames_once():
+    """White residuals give the plain least-squares standard error; the same residuals smoothed
+    over ~20 frames (a replay's error lasts) give a wider one, as many independent samples as
+    they hold."""
+    from so101sim.fidelity.fitparams import standard_errors
+
+    rng = np.random.default_rng(0)
+    jac = rng.normal(size=(2000, 2)) * 0.01
+    white = rng.normal(size=(1000, 2))
+    kernel = np.ones(20) / np.sqrt(20)
+    smooth = np.stack([np.convolve(c, kernel, mode="same") for c in white.T], axis=1)
+    plain = np.sqrt(np.diag(np.linalg.pinv(jac.T @ jac))) * np.sqrt(np.mean(white**2)) * 0.5
+    got_white = standard_errors(jac, white, [500, 500], 0.5)
+    got_smooth = standard_errors(jac, smooth, [500, 500], 0.5)
+    assert got_white == pytest.approx(plain, rel=0.1)
+    ratio = got_smooth / (plain * np.sqrt(np.mean(smooth**2) / np.mean(white**2)))
+    assert np.all(ratio > 3.0) and np.all(ratio < 10.0)  # sqrt((1+rho)/(1-rho)), rho 0.95: 6.2

@@ -1,4 +1,5 @@
 import os
+import signal
 import subprocess
 import sys
 import textwrap
@@ -212,8 +213,12 @@ def test_cli_run_uses_the_viewer_when_there_is_a_display(xvfb):
 @pytest.mark.viewer
 @pytest.mark.parametrize(
     "cmd",
-    [["-m", "so101sim", "view"], ["-m", "mujoco.viewer", "--mjcf={scene}"]],
-    ids=["so101sim-view", "mujoco-viewer-on-model-path"],
+    [
+        ["-m", "so101sim", "view"],
+        ["-m", "so101sim", "pose"],
+        ["-m", "mujoco.viewer", "--mjcf={scene}"],
+    ],
+    ids=["so101sim-view", "so101sim-pose", "mujoco-viewer-on-model-path"],
 )
 def test_interactive_viewer_starts_on_the_shipped_model(xvfb, cmd):
     from so101sim.model import scene_path
@@ -240,8 +245,13 @@ def test_interactive_viewer_starts_on_the_shipped_model(xvfb, cmd):
                 env=env, capture_output=True, text=True, timeout=60,
             )  # fmt: skip
             if found.stdout.strip():
-                return  # the model is on screen and the viewer still runs: it started fine
+                break  # the model is on screen and the viewer still runs: it started fine
             assert time.monotonic() < deadline, "the viewer's window never showed the model"
+        if cmd[1] == "so101sim":  # SIGTERM ends it, window open, as any command (143)
+            proc.send_signal(signal.SIGTERM)
+            _, err = proc.communicate(timeout=120)
+            assert proc.returncode == 128 + signal.SIGTERM, err
+            assert "so101sim: interrupted (SIGTERM)" in err
     finally:
         proc.kill()
         proc.communicate()

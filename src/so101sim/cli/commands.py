@@ -7,7 +7,7 @@ from typing import Any
 
 from ..errors import SettingError
 from ..validation import check_duration
-from .output import say
+from .output import say, signals_end_the_window
 from .tools import output_hint
 
 
@@ -21,7 +21,8 @@ def cmd_view(args: argparse.Namespace) -> int:
     from ..viewer import view
 
     sim = Simulation(args.model, arm=args.arm)
-    view(sim.model, sim.data)
+    with signals_end_the_window():
+        view(sim.model, sim.data)
     return 0
 
 
@@ -52,7 +53,8 @@ def cmd_pose(args: argparse.Namespace) -> int:
     def show(change: Any) -> None:
         say(format_pose(change, with_time=True), flush=True)
 
-    find_poses(m, d, show)  # MuJoCo's viewer until its window is closed
+    with signals_end_the_window():
+        find_poses(m, d, show)  # MuJoCo's viewer until its window is closed
     return 0
 
 

@@ -202,6 +202,47 @@ SIGNALS = _Signals()
 """The handlers :func:`main` installs while a command runs."""
 
 
+@contextlib.contextmanager
+def signals_end_the_window() -> Iterator[None]:
+    """While MuJoCo's managed viewer runs: its window loop holds the main thread in C until the
+    window closes, so no Python handler runs (SIGTERM, SIGHUP, even Ctrl-C would wait for the
+    window). A thread woken by the signal itself (:func:`signal.set_wakeup_fd`) ends the
+    process as the handlers would, ``so101sim: interrupted (SIGTERM)`` and 128 + the signal:
+    the viewer holds nothing to finish. (Off the main thread, where no handler runs: nothing.)"""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    read, write = os.pipe()
+    os.set_blocking(write, False)
+    previous = signal.set_wakeup_fd(write, warn_on_full_buffer=False)
+    done = threading.Event()
+    ending = {int(s) for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", 0)) if s}
+
+    def watch() -> None:
+        while not done.is_set():
+            got = os.read(read, 1)
+            if done.is_set() or not got:
+                return
+            if got[0] in ending:
+                with contextlib.suppress(Exception):
+                    sys.stdout.flush()
+                _notice(f"so101sim: interrupted ({_signal_name(got[0])})\n")
+                os._exit(128 + got[0])
+
+    watcher = threading.Thread(target=watch, name="so101sim-window-signals", daemon=True)
+    watcher.start()
+    try:
+        yield
+    finally:
+        done.set()
+        signal.set_wakeup_fd(previous)
+        with contextlib.suppress(OSError):
+            os.write(write, b"\0")  # wakes the thread, which sees it is done
+        watcher.join(timeout=10.0)
+        os.close(read)
+        os.close(write)
+
+
 @atexit.register
 def _ignore_signals_at_exit() -> None:
     """After an interrupted command, a signal during the interpreter's shutdown (which puts

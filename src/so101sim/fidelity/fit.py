@@ -15,11 +15,11 @@ body joint's calibration fitted: the reading is ``scale`` × angle + ``offset``
 ``[calibration]`` with standard errors, and used by ``compare`` on such recordings.
 
 A weak prior pulls each parameter toward the starting profile (a joint that barely moved in the
-recordings keeps its starting values instead of drifting); each parameter's standard error
-comes from the Jacobian at the solution. Whole episodes are held out of the fit (``holdout``;
-the last one by default, when there are two or more): the fitted profile, the default profile
-and the bare commands are all scored on them. Frames where the real gripper is blocked on an
-object (:func:`~so101sim.fidelity.windows.blocked_gripper`) are left out of the gripper's error.
+recordings keeps its starting values instead of drifting); standard errors come from the
+Jacobian at the solution (:func:`~.fitparams.standard_errors`). Whole episodes are held out of
+the fit (``holdout``; the last one by default, when there are two or more): the fitted profile,
+the default profile and the bare commands are all scored on them. Frames where the real
+gripper is blocked on an object (:func:`~.windows.blocked_gripper`) are left out of its error.
 """
 
 from __future__ import annotations
@@ -62,6 +62,7 @@ from .fitparams import (
     get_value,
     mae,
     spread,
+    standard_errors,
     with_values,
 )
 from .logs import ArmLog, Episode, read_log
@@ -70,7 +71,10 @@ from .windows import stall_episodes
 log = logging.getLogger(__name__)
 
 MAX_THREADS = 256  # threads for the parallel rollouts (one MjData each)
-FD_STEP = 1e-3  # finite-difference step, relative to each parameter's scale
+FD_STEPS = (0.3, 0.03)
+"""Finite-difference steps, relative to each parameter's scale: a wide one first (the replayed
+arm's friction makes its error rough at small scales, and a narrow slope leads the solver into a
+false valley: a calibration offset traded for stiffness), then a narrow one to settle."""
 _ADVICE = "expected servo parameters within their bounds (a replay diverged)"
 
 __all__ = ["FIT_NAMES", "ArmReplayer", "FitResult", "fit"]
@@ -310,8 +314,8 @@ def fit(
             cache[key] = residuals_batch([z])[0]
         return cache[key]
 
-    def jac(z: np.ndarray) -> np.ndarray:
-        h = FD_STEP * np.maximum(1.0, np.abs(z))
+    def jac(z: np.ndarray, step: float) -> np.ndarray:
+        h = step * np.maximum(1.0, np.abs(z))
         steps = []
         for i in range(len(z)):
             zi = z.copy()
@@ -332,13 +336,16 @@ def fit(
         preds = run(rep, [profile_of(z) for z in zs])
         calls[0] += len(zs)
         z0 = zs[int(np.argmin([float(np.mean(np.abs(p - real)[used])) for p in preds]))]
-    sol = optimize.least_squares(
-        fun, z0, jac=jac, bounds=(lo, hi), x_scale="jac", loss="soft_l1",
-        f_scale=0.5 * data_w, max_nfev=max_evaluations,
-    )  # fmt: skip
-    s2 = float(np.sum(sol.fun[:n_res] ** 2)) / max(1, n_res - len(keys)) / data_w**2
-    cov = np.linalg.pinv(sol.jac.T @ sol.jac) * s2 * data_w**2
-    se = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * scale
+    sol = None
+    for step, budget in zip(FD_STEPS, (max_evaluations, max_evaluations // 2), strict=True):
+        if budget >= 1:  # the narrow steps get half the budget again
+            sol = optimize.least_squares(
+                fun, z0 if sol is None else sol.x, jac=lambda z, h=step: jac(z, h),
+                bounds=(lo, hi), x_scale="jac", loss="soft_l1", f_scale=0.5 * data_w,
+                max_nfev=budget,
+            )  # fmt: skip
+    frames = sol.fun[:n_res].reshape(real.shape) / data_w  # arm units, 0 where not used
+    se = standard_errors(sol.jac, frames, [len(e.times) for e in fit_eps], data_w) * scale
     values: dict[str, dict[str, float]] = {}
     stderr: dict[str, dict[str, float]] = {}
     for (j, n), v, e in zip(keys, sol.x * scale, se, strict=True):

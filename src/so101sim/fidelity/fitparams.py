@@ -52,6 +52,11 @@ TYPICAL = {"kp_per_p": 0.5, "torque_limit": 1.0, "damping": 0.5, "viscous": 0.1,
            "cal_offset": 1.0}  # fmt: skip
 PRIOR_SD = {"offset": 0.05, "delay_s": 0.05, "cal_scale": 0.1, "cal_offset": 5.0}
 """Absolute standard deviations of the weak prior; the others: 50 % of the starting value."""
+READING_STEP_DEG = 360.0 / 4096
+"""An STS3215's position reading step (4096 per turn), degrees: the least error of any reading."""
+MAX_AUTOCORRELATION = 0.995
+"""The largest lag-one autocorrelation of the residuals a standard error is inflated for (a
+factor of at most 399 in variance, 20 in standard error)."""
 
 
 @dataclass(frozen=True)
@@ -108,6 +113,34 @@ def spread(stderr: dict[str, dict[str, float]]) -> dict[str, float]:
             if name in UNCERTAIN_FIELDS and math.isfinite(se):
                 out[name] = max(out.get(name, 0.0), float(se))
     return {k: min(v, UNCERTAIN_LIMIT[k]) for k, v in out.items()}
+
+
+def standard_errors(
+    jac: np.ndarray, residuals: np.ndarray, lengths: Sequence[int], data_w: float
+) -> np.ndarray:
+    """Each fitted parameter's standard error (in the solver's scaled units) from the Jacobian
+    at the solution (data rows weighted by ``data_w``, then the prior's rows) and the residuals
+    (frames × joints, arm units; ``lengths``: the episodes' frame counts, in order).
+
+    The residuals of a replay are far from independent: an error lasts for many frames. The
+    covariance is therefore inflated by ``(1 + rho) / (1 - rho)``, rho the residuals' lag-one
+    autocorrelation within each episode (pooled over joints): the variance of a mean of an
+    AR(1) series, i.e. as many independent samples as the series really holds. The residuals'
+    variance is at least a reading step's (:data:`READING_STEP_DEG`): no servo's log resolves a
+    pose better, and a synthetic log that does (a sim read exactly) is not taken at its word."""
+    n, k = residuals.size, jac.shape[1]
+    s2 = max(float(np.sum(residuals**2)) / max(1, n - k), READING_STEP_DEG**2 / 12.0)
+    num = den = 0.0
+    start = 0
+    for length in lengths:
+        r = residuals[start : start + length]
+        num += float(np.sum(r[1:] * r[:-1]))
+        den += float(np.sum(r**2))
+        start += length
+    rho = float(np.clip(num / den, 0.0, MAX_AUTOCORRELATION)) if den > 0 else 0.0
+    inflation = (1.0 + rho) / (1.0 - rho)
+    cov = np.linalg.pinv(jac.T @ jac) * s2 * data_w**2 * inflation
+    return np.sqrt(np.clip(np.diag(cov), 0.0, None))
 
 
 def get_value(profile: ArmProfile, joint: str, name: str) -> float:
