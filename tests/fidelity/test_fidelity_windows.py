@@ -123,7 +123,7 @@ def test_fit_holds_out_the_episodes_it_is_told(tmp_path, capsys):
     eps = record(load_profile("sts3215"), [1, 2, 3], seconds=1.5)
     root = write_lerobot(tmp_path / "ds", eps)
     out = tmp_path / "a.toml"
-    argv = ["fit", str(root), "-o", str(out), "--units", "degrees", "--iterations", "2"]
+    argv = ["fit", str(root), "-o", str(out), "--units", "degrees", "--iterations", "1"]
     code = main([*argv, "--holdout", "0"])
     text = capsys.readouterr().out
     assert "fitted on episodes 1,2" in text and "held-out episodes 0" in text
