@@ -76,9 +76,6 @@ TIP_FEATURES = {"pick_cube"}
 jaws (6 numbers, from the joint positions by forward kinematics and the cube's pose in the
 state): an MLP need not learn the arm's geometry from a few hundred thousand steps, as
 ManiSkill's state observations give ``tcp_pose`` and ``tcp_to_obj_pos``."""
-GRIP_OFFSET_M = 0.014
-"""The point between the jaws lies this far along the tool's z axis from the tip (metres),
-as so101sim.envs.scene_state's ``grip_centre``."""
 
 
 def action_size(recipe: str, full: int) -> int:
@@ -111,6 +108,7 @@ def tip_features(joints: np.ndarray, state: np.ndarray) -> np.ndarray:
     """(n, 6) float32: the tip's position (metres, base frame) for each row of joint positions
     (arm units), and the object's position (``state``'s first three) less the point between
     the jaws."""
+    from so101sim.envs.scene_state import GRIP_OFFSET_M  # the point between the jaws
     from so101sim.kinematics import for_model
 
     kin = for_model()
