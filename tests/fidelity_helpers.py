@@ -151,14 +151,16 @@ def as_read(episodes: list[Episode], cal: dict, blocked: tuple[float, float] | N
     return out
 
 
-def range_mode(units):
-    """A transform of arm units to LeRobot's range mode (−100..100 mapped onto the model's
-    joint ranges: what ``compare`` and ``fit`` assume without a calibration JSON)."""
-    lo, hi = units.limits
+def range_mode(units=None):
+    """A transform of arm units to LeRobot's range mode as a typical arm reads it (the inverse
+    of what ``compare`` and ``fit`` assume without a calibration JSON)."""
+    from so101sim.fidelity.calibration import range_guess
+
+    scale, offset = range_guess()
 
     def tf(values):
         v = np.array(values, dtype=float).copy()
-        v[:5] = (v[:5] - (hi + lo)[:5] / 2) / ((hi - lo)[:5] / 200.0)
+        v[:5] = (v[:5] - offset) / scale
         return v
 
     return tf

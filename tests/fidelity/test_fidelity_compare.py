@@ -99,6 +99,44 @@ def test_range_mode_with_and_without_calibration(tmp_path, episodes, capsys):
     json.loads(out.out)
 
 
+def _lerobot_range(ticks, lo, hi):
+    """LeRobot 0.6.1's range mode (``MotorsBus._normalize``, drive_mode 0) of a raw reading."""
+    return (np.clip(ticks, lo, hi) - lo) / (hi - lo) * 200 - 100
+
+
+def test_the_range_guess_is_a_typical_lerobot_calibration(tmp_path, episodes):
+    from so101sim.fidelity.calibration import RANGE_GUESS, range_guess
+
+    # wrist_roll: LeRobot >= 0.4 writes 0..4095 (not swept); the pose placed at calibration
+    # reads 2047 ticks = the model's zero, so a reading is (ticks - 2047) * 360 / 4096 degrees
+    ticks = np.linspace(0, 4095, 41)
+    r = _lerobot_range(ticks, 0, 4095)
+    scale, offset = RANGE_GUESS["wrist_roll"]
+    np.testing.assert_allclose(scale * r + offset, (ticks - 2047) * 360 / 4096, atol=0.05)
+    # a follower calibrated with the typical ranges (the placed pose at 2047 ticks) is read back
+    # to its angles within a reading step
+    scale, offset = range_guess()
+    for j, name in enumerate(JOINT_NAMES[:5]):
+        half = scale[j] * 100 * 4096 / 360  # half the swept range, ticks
+        mid = 2047 + offset[j] * 4096 / 360  # the swept range's middle, ticks
+        angle = np.linspace(-60, 60, 13)
+        read = _lerobot_range(2047 + angle * 4096 / 360, mid - half, mid + half)
+        np.testing.assert_allclose(scale[j] * read + offset[j], angle, atol=0.1, err_msg=name)
+    # the elbow's swept middle lies below the placed pose on real arms (mean of 20 files)
+    assert -8 < RANGE_GUESS["elbow_flex"][1] < -3
+
+    # and compare reads a range-mode recording with it, saying so
+    def to_range(v):
+        out = np.array(v, dtype=float)
+        out[:5] = (out[:5] - offset) / scale
+        return out
+
+    root = write_lerobot(tmp_path / "ds", episodes, transform=to_range)
+    log = read_log(root, default_units())
+    assert log.range_guess and any("typical" in w for w in log.warnings)
+    np.testing.assert_allclose(log.episodes[0].measured, episodes[0].measured, atol=1e-3)
+
+
 def test_cli_json_is_one_object_on_stdout(tmp_path, episodes, true_toml, capsys):
     root = write_lerobot(tmp_path / "ds", episodes)
     plot = tmp_path / "overlay.png"

@@ -1,5 +1,5 @@
 """A recording's units: LeRobot's range mode (−100..100 of each joint's calibrated range) made
-degrees, with LeRobot's calibration JSON (exact) or the model's joint ranges (a guess), and
+degrees, with LeRobot's calibration JSON (exact) or a typical arm's calibration (a guess), and
 where LeRobot keeps that JSON (:func:`lerobot_calibration_path`).
 
 LeRobot 0.6 keeps a follower's calibration at
@@ -20,14 +20,16 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import CalibrationError
-from ..units import JOINT_NAMES, ArmUnits
+from ..units import JOINT_NAMES
 from .logdata import LogError, read_small
 
 __all__ = [
+    "RANGE_GUESS",
     "calibration_maps",
     "from_log",
     "lerobot_calibration_dir",
     "lerobot_calibration_path",
+    "range_guess",
     "to_arm_units",
     "to_log",
 ]
@@ -102,13 +104,13 @@ def to_arm_units(
     act: np.ndarray,
     obs: np.ndarray,
     mode: str,
-    units: ArmUnits,
     calibration: str | Path | None,
     warnings: list[str],
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Commands and measurements (``(n, 6)`` each, as recorded) in arm units (degrees, the
     gripper 0–100), by ``mode`` (``auto``, ``degrees``, ``range``; module docstring), and
-    whether the body joints' degrees are a guess (range mode mapped onto the model's ranges)."""
+    whether the body joints' degrees are a guess (range mode without a calibration JSON:
+    :data:`RANGE_GUESS`)."""
     body = np.abs(np.concatenate([act[:, :5], obs[:, :5]]))
     beyond = bool(body.max(initial=0.0) > 100.0 + 1e-6)
     if mode == "range" and beyond:
@@ -129,19 +131,38 @@ def to_arm_units(
         act[:, :5] *= scale
         obs[:, :5] *= scale
         return act, obs, False
-    lo, hi = units.limits
-    span = (hi - lo)[:5] / 200.0
-    mid = ((hi + lo) / 2)[:5]
+    span, mid = range_guess()
     warnings.append(
         "the body joints look range-normalised (-100..100) and no --calibration was given: "
-        "mapped linearly onto the model's joint ranges (approximate; give LeRobot's "
-        "calibration JSON (--calibration or --robot-id) for exact degrees, or let `so101sim "
-        "fit` estimate each joint's offset and scale)"
+        "mapped with a typical SO-101's calibration (approximate, a few degrees per joint; give "
+        "LeRobot's calibration JSON (--calibration or --robot-id) for exact degrees, or let "
+        "`so101sim fit` estimate each joint's offset and scale)"
     )
     act, obs = act.copy(), obs.copy()
     act[:, :5] = mid + act[:, :5] * span
     obs[:, :5] = mid + obs[:, :5] * span
     return act, obs, True
+
+
+RANGE_GUESS: dict[str, tuple[float, float]] = {
+    "shoulder_pan": (1.13, 0.0),
+    "shoulder_lift": (1.033, -2.6),
+    "elbow_flex": (0.969, -5.7),
+    "wrist_flex": (1.015, -4.0),
+    "wrist_roll": (360.0 / 200.0 * (TICKS_PER_TURN - 1) / TICKS_PER_TURN, 0.0),
+}
+"""A typical SO-101 follower's range mode: joint angle (degrees, the model's zero being the
+pose LeRobot's calibration asks the arm to be placed in) = ``scale`` · reading + ``offset``, per
+body joint. From 20 public LeRobot calibration files of real followers (docs/fidelity.md,
+"Range mode without a calibration file"): ``scale`` is the mean swept range / 200, ``offset``
+the mean distance of the swept range's middle from the placed pose (pan's +0.6 taken as 0).
+wrist_roll is exact: LeRobot ≥ 0.4 does not sweep it and writes 0..4095, one turn."""
+
+
+def range_guess() -> tuple[np.ndarray, np.ndarray]:
+    """Per body joint (arm order) the ``scale`` and ``offset`` of :data:`RANGE_GUESS`."""
+    pairs = [RANGE_GUESS[name] for name in JOINT_NAMES[:5]]
+    return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
 
 
 def calibration_scale(path: Path) -> np.ndarray:

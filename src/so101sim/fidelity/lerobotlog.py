@@ -207,7 +207,7 @@ def read_lerobot(
     warnings: list[str] = []
     if mode == "auto" and calibration is None and _written_by_so101sim(root):
         mode = "degrees"  # `so101sim dataset` writes the body joints in degrees
-    act, obs, guessed = to_arm_units(act, obs, mode, units, calibration, warnings)
+    act, obs, guessed = to_arm_units(act, obs, mode, calibration, warnings)
     order = np.lexsort((fr, ep))  # by episode, then frame: each episode one slice
     found, first = np.unique(ep[order], return_index=True)
     bounds = dict(zip(found.tolist(), zip(first, [*first[1:], len(order)], strict=True),

@@ -49,8 +49,8 @@ class ArmLog:
     kind: str  # "lerobot-v2.1" | "lerobot-v3.0" | "csv"
     warnings: list[str] = field(default_factory=list)
     range_guess: bool = False
-    """True when range-mode readings were mapped onto the model's joint ranges (no LeRobot
-    calibration JSON): each body joint's true offset and scale are unknown."""
+    """True when range-mode readings were read as a typical arm's (no LeRobot calibration
+    JSON): each body joint's true offset and scale are unknown."""
 
     @property
     def frames(self) -> int:

@@ -12,8 +12,9 @@ LeRobot's when asked) records body joints in degrees (0 in the middle of the cal
 and the gripper on 0–100: so101sim's own units, read as they are (``"degrees"``). LeRobot's
 default (range mode, ``"range"``) records body joints on −100..100 of the calibrated range:
 with LeRobot's calibration JSON (``range_min``, ``range_max`` per motor) they become degrees
-exactly as LeRobot computes them; without it they are mapped linearly onto the model's joint
-ranges, with a warning (an approximation: the real calibrated range is not the model's).
+exactly as LeRobot computes them; without it they are read as a typical arm's
+(:data:`~so101sim.fidelity.calibration.RANGE_GUESS`), with a warning (an approximation: each
+arm's calibrated range is its own).
 ``"auto"`` (the default): range mode when a calibration is given; degrees when a body joint
 reads beyond ±100; otherwise range mode (LeRobot's default), with a warning saying so.
 """
