@@ -71,10 +71,12 @@ def test_range_mode_with_and_without_calibration(tmp_path, episodes, capsys):
     lo_t = np.array([1000, 800, 900, 850, 100, 2000])
     hi_t = np.array([3000, 3200, 3100, 3050, 3900, 3400])
     deg_per_unit = (hi_t - lo_t)[:5] / 200 * 360 / 4095
+    # the arm was placed at the model's zero when calibrated: that pose reads 2047 ticks
+    placed = ((lo_t + hi_t)[:5] / 2 - 2047) * 360 / 4095
 
     def to_range(v):
         out = np.array(v, dtype=float)
-        out[:5] = out[:5] / deg_per_unit
+        out[:5] = (out[:5] - placed) / deg_per_unit
         return out
 
     root = write_lerobot(tmp_path / "ds", episodes, transform=to_range)
@@ -85,6 +87,10 @@ def test_range_mode_with_and_without_calibration(tmp_path, episodes, capsys):
     log = read_log(root, default_units(), calibration=cal_path)
     assert not log.warnings
     np.testing.assert_allclose(log.episodes[0].measured, episodes[0].measured, atol=1e-3)
+    # a degrees recording (beyond ±100) with a calibration is refused, not read as range mode
+    wide = write_lerobot(tmp_path / "deg", episodes, transform=lambda v: np.asarray(v) * 3)
+    with pytest.raises(LogError, match="beyond ±100"):
+        read_log(wide, default_units(), calibration=cal_path)
     guessed = read_log(root, default_units())
     assert any("--calibration" in w for w in guessed.warnings)
     assert any("--units degrees" in w for w in guessed.warnings)

@@ -60,6 +60,9 @@ def to_log(values: np.ndarray, cal: dict[str, dict[str, float]]) -> np.ndarray:
 
 TICKS_PER_TURN = 4096
 DEGREE_TICKS = 4095  # LeRobot's degrees: (ticks - middle) * 360 / 4095
+PLACED_TICKS = 2047
+"""What a servo reads at the pose the arm was placed in for ``lerobot-calibrate`` (LeRobot
+writes its homing offset so that pose reads ``int(4095 / 2)``)."""
 ROBOT_FOLDERS = ("so_follower", "so101_follower")
 """The folders under ``robots/`` where LeRobot keeps an SO-101 follower's calibration (0.6,
 then older releases)."""
@@ -118,7 +121,13 @@ def to_arm_units(
             "units = range, but a body joint reads beyond ±100; expected range-mode data "
             "(-100..100), or units = degrees"
         )
-    if mode == "degrees" or (mode == "auto" and calibration is None and beyond):
+    if calibration is not None and beyond:
+        raise LogError(
+            "a body joint reads beyond ±100, so the recording is in degrees, but a calibration "
+            "was given; expected range-mode data (-100..100) with --calibration / --robot-id, "
+            "or degrees without"
+        )
+    if mode == "degrees" or (mode == "auto" and beyond):
         return act, obs, False
     if mode == "auto" and calibration is None:
         warnings.append(
@@ -126,10 +135,10 @@ def to_arm_units(
             "if the follower recorded degrees (use_degrees=True) give --units degrees"
         )
     if calibration is not None:
-        scale = calibration_scale(Path(calibration).expanduser())
+        scale, offset = calibration_of(Path(calibration).expanduser())
         act, obs = act.copy(), obs.copy()
-        act[:, :5] *= scale
-        obs[:, :5] *= scale
+        act[:, :5] = act[:, :5] * scale + offset
+        obs[:, :5] = obs[:, :5] * scale + offset
         return act, obs, False
     span, mid = range_guess()
     warnings.append(
@@ -165,11 +174,14 @@ def range_guess() -> tuple[np.ndarray, np.ndarray]:
     return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
 
 
-def calibration_scale(path: Path) -> np.ndarray:
-    """Degrees per range unit of each body joint from LeRobot's calibration JSON: a range value
-    v maps to ticks ``min + (v + 100) / 200 · (max − min)`` (v negated for a motor with
-    ``drive_mode`` 1), and degrees are ticks from the middle of the range times 360/4095
-    (LeRobot's ``use_degrees``), so ``± v · (max − min) / 200 · 360 / 4095``."""
+def calibration_of(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Each body joint's ``scale`` (degrees per range unit) and ``offset`` (degrees) from
+    LeRobot's calibration JSON: a range value v is ticks ``min + (v + 100) / 200 · (max − min)``
+    (v negated for a motor with ``drive_mode`` 1), and the angle is ticks from
+    :data:`PLACED_TICKS` (the pose the arm was placed in when calibrated: the model's zero)
+    times 360/4095, so ``± v · (max − min) / 200 · 360 / 4095 + ((min + max) / 2 − 2047) ·
+    360 / 4095``. (LeRobot's own ``use_degrees`` counts from the swept range's middle instead,
+    dropping the second term.)"""
     what = "calibration file"
     if not path.exists():
         raise CalibrationError(
@@ -180,7 +192,7 @@ def calibration_scale(path: Path) -> np.ndarray:
         cal = json.loads(read_small(path, what, CalibrationError))
     except ValueError as exc:
         raise CalibrationError(f"calibration file {str(path)!r} cannot be read: {exc}") from exc
-    scale = np.empty(5)
+    scale, offset = np.empty(5), np.empty(5)
     for i, name in enumerate(JOINT_NAMES[:5]):
         m = cal.get(name) if isinstance(cal, dict) else None
         try:
@@ -198,4 +210,5 @@ def calibration_scale(path: Path) -> np.ndarray:
                 "0 or 1"
             )
         scale[i] = (-1.0 if flip else 1.0) * (hi - lo) / 200.0 * 360.0 / DEGREE_TICKS
-    return scale
+        offset[i] = ((lo + hi) / 2.0 - PLACED_TICKS) * 360.0 / DEGREE_TICKS
+    return scale, offset

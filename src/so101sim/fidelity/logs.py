@@ -8,15 +8,17 @@ file under ``data/`` is read (pyarrow) and its rows grouped by ``episode_index``
 pose), ``observation.state`` what the follower measured.
 
 Units (``units``). A follower run with ``use_degrees=True`` (so101sim's simulated follower, and
-LeRobot's when asked) records body joints in degrees (0 in the middle of the calibrated range)
-and the gripper on 0–100: so101sim's own units, read as they are (``"degrees"``). LeRobot's
-default (range mode, ``"range"``) records body joints on −100..100 of the calibrated range:
-with LeRobot's calibration JSON (``range_min``, ``range_max`` per motor) they become degrees
-exactly as LeRobot computes them; without it they are read as a typical arm's
-(:data:`~so101sim.fidelity.calibration.RANGE_GUESS`), with a warning (an approximation: each
-arm's calibrated range is its own).
-``"auto"`` (the default): range mode when a calibration is given; degrees when a body joint
-reads beyond ±100; otherwise range mode (LeRobot's default), with a warning saying so.
+LeRobot's when asked) records body joints in degrees and the gripper on 0–100: so101sim's own
+units, read as they are (``"degrees"``; a calibration JSON is refused there). LeRobot's default
+(range mode, ``"range"``) records body joints on −100..100 of the calibrated range: with
+LeRobot's calibration JSON (``range_min``, ``range_max`` per motor) they become degrees from the
+pose the arm was placed in when calibrated, the model's zero
+(:func:`~so101sim.fidelity.calibration.calibration_of`); without it they are read as a typical
+arm's (:data:`~so101sim.fidelity.calibration.RANGE_GUESS`), with a warning (an approximation:
+each arm's calibrated range is its own).
+``"auto"`` (the default): range mode when a calibration is given (a body joint beyond ±100 is
+then an error); degrees when a body joint reads beyond ±100; otherwise range mode (LeRobot's
+default), with a warning saying so.
 """
 
 from __future__ import annotations
