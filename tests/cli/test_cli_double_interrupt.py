@@ -67,6 +67,7 @@ def test_after_an_interrupted_command_a_late_signal_is_not_swallowed(monkeypatch
             threading.Event().wait(60)  # the handler raises in here, at once
 
         monkeypatch.setattr(cli_main, "cmd_model_path", interrupt)
+        cli_main._parser.cache_clear()  # main()'s parser holds the commands it was built with
         assert cli.main(["model-path"]) == 128 + signal.SIGTERM
         os.kill(os.getpid(), signal.SIGTERM)  # within a second: swallowed
         assert received == []
@@ -75,3 +76,4 @@ def test_after_an_interrupted_command_a_late_signal_is_not_swallowed(monkeypatch
         assert received == [signal.SIGTERM]
     finally:
         signal.signal(signal.SIGTERM, previous)
+        cli_main._parser.cache_clear()  # not the patched command for the next test

@@ -25,6 +25,7 @@ finishes the output files first, in :mod:`.output`.
 from __future__ import annotations
 
 import argparse
+import functools
 import logging
 import os
 import select
@@ -255,8 +256,16 @@ def _stdout_closed() -> bool:
     return gone
 
 
+@functools.cache
+def _parser() -> argparse.ArgumentParser:
+    """:func:`build_parser`'s parser, built once per process: it takes about 8 ms (argparse
+    looks up a translation for every help text), which a caller of :func:`main` in a loop
+    (a test, a script) would otherwise pay on every call. Parsing does not change it."""
+    return build_parser()
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    parser = _parser()
     argv, script_args = split_script_args(list(sys.argv[1:] if argv is None else argv))
     args = parser.parse_args(argv)
     if script_args is not None:
