@@ -151,7 +151,7 @@ def as_read(episodes: list[Episode], cal: dict, blocked: tuple[float, float] | N
     return out
 
 
-def range_mode(units=None):
+def range_mode():
     """A transform of arm units to LeRobot's range mode as a typical arm reads it (the inverse
     of what ``compare`` and ``fit`` assume without a calibration JSON)."""
     from so101sim.fidelity.calibration import range_guess

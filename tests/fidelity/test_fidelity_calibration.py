@@ -17,7 +17,6 @@ from fidelity_helpers import TRUE_CALIBRATION, as_read, range_mode, record, true
 from so101sim.fidelity.compare import compare
 from so101sim.fidelity.fit import fit
 from so101sim.fidelity.fitparams import body_mean
-from so101sim.model import default_units
 from so101sim.model.arm import load_profile, profile_toml
 from so101sim.units import JOINT_NAMES
 
@@ -27,7 +26,7 @@ JOINTS = tuple(TRUE_CALIBRATION)
 @pytest.mark.slow
 def test_fit_finds_the_calibration_and_predicts_a_held_out_episode(tmp_path):
     eps = as_read(record(true_arm(), [11, 12, 13, 14], 4.0), TRUE_CALIBRATION, blocked=(1.0, 2.5))
-    root = write_lerobot(tmp_path / "ds", eps, transform=range_mode(default_units()))
+    root = write_lerobot(tmp_path / "ds", eps, transform=range_mode())
     res = fit([root], arm="sts3215", names=("kp_per_p", "damping"), joints=JOINTS,
               holdout=[3], max_evaluations=30)  # fmt: skip
     assert res.fit_episodes == [0, 1, 2] and res.heldout_episodes == [3]

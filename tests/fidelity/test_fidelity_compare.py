@@ -10,7 +10,7 @@ import pytest
 
 pytest.importorskip("pyarrow")
 
-from fidelity_helpers import commands, record, true_arm, write_csv, write_lerobot
+from fidelity_helpers import commands, range_mode, record, true_arm, write_csv, write_lerobot
 
 from so101sim.cli import main
 from so101sim.errors import CalibrationError
@@ -132,12 +132,7 @@ def test_the_range_guess_is_a_typical_lerobot_calibration(tmp_path, episodes):
     assert -8 < RANGE_GUESS["elbow_flex"][1] < -3
 
     # and compare reads a range-mode recording with it, saying so
-    def to_range(v):
-        out = np.array(v, dtype=float)
-        out[:5] = (out[:5] - offset) / scale
-        return out
-
-    root = write_lerobot(tmp_path / "ds", episodes, transform=to_range)
+    root = write_lerobot(tmp_path / "ds", episodes, transform=range_mode())
     log = read_log(root, default_units())
     assert log.range_guess and any("typical" in w for w in log.warnings)
     np.testing.assert_allclose(log.episodes[0].measured, episodes[0].measured, atol=1e-3)

@@ -156,15 +156,13 @@ def test_fit_refuses_a_profile_worse_than_the_default_on_held_out_episodes(tmp_p
 def test_fit_calibration_only_keeps_the_servos_and_needs_a_guessed_calibration(tmp_path, capsys):
     from fidelity_helpers import TRUE_CALIBRATION, range_mode
 
-    from so101sim.model import default_units
-
     eps = as_read(record(load_profile("sts3215"), [1, 2], seconds=1.5), TRUE_CALIBRATION)
     degrees = write_lerobot(tmp_path / "deg", eps)
     out = tmp_path / "a.toml"
     argv = ["fit", "-o", str(out), "--iterations", "2", "--calibration-only", "--force"]
     assert main([*argv, str(degrees), "--units", "degrees"]) == 2  # its calibration is given
     assert "nothing to fit" in capsys.readouterr().err and not out.exists()
-    ranged = write_lerobot(tmp_path / "rng", eps, transform=range_mode(default_units()))
+    ranged = write_lerobot(tmp_path / "rng", eps, transform=range_mode())
     assert main([*argv, str(ranged)]) == 0
     prof = load_profile(out)
     assert set(prof.calibration) == set(JOINT_NAMES[:5])

@@ -136,21 +136,18 @@ def to_arm_units(
         )
     if calibration is not None:
         scale, offset = calibration_of(Path(calibration).expanduser())
-        act, obs = act.copy(), obs.copy()
-        act[:, :5] = act[:, :5] * scale + offset
-        obs[:, :5] = obs[:, :5] * scale + offset
-        return act, obs, False
-    span, mid = range_guess()
-    warnings.append(
-        "the body joints look range-normalised (-100..100) and no --calibration was given: "
-        "mapped with a typical SO-101's calibration (approximate, a few degrees per joint; give "
-        "LeRobot's calibration JSON (--calibration or --robot-id) for exact degrees, or let "
-        "`so101sim fit` estimate each joint's offset and scale)"
-    )
+    else:
+        scale, offset = range_guess()
+        warnings.append(
+            "the body joints look range-normalised (-100..100) and no --calibration was given: "
+            "mapped with a typical SO-101's calibration (approximate, a few degrees per joint; "
+            "give LeRobot's calibration JSON (--calibration or --robot-id) for exact degrees, or "
+            "let `so101sim fit` estimate each joint's offset and scale)"
+        )
     act, obs = act.copy(), obs.copy()
-    act[:, :5] = mid + act[:, :5] * span
-    obs[:, :5] = mid + obs[:, :5] * span
-    return act, obs, True
+    for values in (act, obs):
+        values[:, :5] = values[:, :5] * scale + offset
+    return act, obs, calibration is None
 
 
 RANGE_GUESS: dict[str, tuple[float, float]] = {

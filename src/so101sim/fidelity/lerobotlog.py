@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..units import JOINT_NAMES, LEROBOT_SUFFIX, ArmUnits
+from ..units import JOINT_NAMES, LEROBOT_SUFFIX
 from .calibration import to_arm_units
 from .deps import need
 from .logdata import (
@@ -155,9 +155,7 @@ def _column(col, name: str, path: Path) -> np.ndarray:
     return flat.reshape(n, -1 if n else 0)
 
 
-def read_lerobot(
-    root: Path, units: ArmUnits, episodes: list[int] | None, calibration, mode: str
-) -> ArmLog:
+def read_lerobot(root: Path, episodes: list[int] | None, calibration, mode: str) -> ArmLog:
     """The LeRobot dataset at ``root`` in arm units (module docstring).
 
     Raises:

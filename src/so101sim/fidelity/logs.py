@@ -105,7 +105,7 @@ def read_log(
     if units == "degrees" and calibration is not None:
         raise LogError("--calibration converts range-mode data; degrees need none")
     if p.is_dir():
-        return read_lerobot(p, arm_units, episodes, calibration, units)
+        return read_lerobot(p, episodes, calibration, units)
     if p.is_file() and p.suffix.lower() == ".csv":
         if calibration is not None:
             raise LogError("--calibration applies to LeRobot datasets; a CSV log is in arm units")
