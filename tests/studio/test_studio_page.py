@@ -203,6 +203,8 @@ def test_the_timeline_scrubs_a_finished_run(browser):
         button = [b for b in browser.find_elements("tag name", "button") if b.text == "Play"]
         button[0].click()
         wait_until(
-            lambda: studio._play_time >= frames[-1].time - 1e-6, BROWSER_WAIT, "playing to the end"
+            lambda: studio._play_time >= frames[-1].time - 1e-6 and not studio.playing,
+            BROWSER_WAIT,
+            "playing to the end and stopping there",
         )
-        assert not studio.playing
+        assert studio._play_time == pytest.approx(frames[-1].time)  # it stops, no loop

@@ -298,14 +298,14 @@ class Studio:
                     continue
                 end = self.timeline.frames[-1].time
                 self._play_time = min(end, self._play_time + (now - last) * self.speed)
+                if self._play_time >= end:  # at the end: stopped before anything else reads it
+                    self.playing = False
                 last = now
                 frame = self.timeline.at(self._play_time)
                 self._draw(frame)
                 if self.slider is not None:
                     self._slider_set = round(self._play_time, 3)
                     self.slider.value = self._slider_set
-                if self._play_time >= end:
-                    self.playing = False
 
     speed = 1.0  # the player's speed (set to the run's --speed)
     angles_title = "Angles (commanded, measured)"  # the panel's folder of the angles table
