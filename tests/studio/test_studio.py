@@ -105,6 +105,25 @@ def test_the_studio_refuses_a_port_in_use_and_a_bad_port():
         Studio(Simulation().model, port=70000)
 
 
+def test_no_shadows_turns_off_every_lights_shadow_and_the_default_keeps_the_models():
+    """``shadows=False`` (``--no-shadows``): no light of the page casts a shadow (a browser
+    without a GPU skips the shadow map every frame); by default the model's light casts one,
+    as its ``castshadow`` says."""
+    from so101sim.cli.main import build_parser
+
+    model = Simulation().model
+    assert model.light_castshadow.any()
+    with Studio(model, port=free_port(), controls=False) as studio:
+        assert any(getattr(light, "cast_shadow", False) for light in studio.lights)
+    with Studio(model, port=free_port(), controls=False, shadows=False) as studio:
+        assert len(studio.lights) >= 2 + model.nlight
+        assert not any(getattr(light, "cast_shadow", False) for light in studio.lights)
+    parser = build_parser()
+    for command in (["view"], ["pose"], ["run", "motion.toml"], ["compare", "data"]):
+        assert parser.parse_args([*command, "--web"]).shadows is True
+        assert parser.parse_args([*command, "--web", "--no-shadows"]).shadows is False
+
+
 def test_without_viser_the_error_names_the_extra(monkeypatch):
     from so101sim.studio.server import require_viser
 

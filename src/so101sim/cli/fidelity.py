@@ -204,7 +204,7 @@ def _serve_compare(result, args: argparse.Namespace) -> int:
     ]  # fmt: skip
     with _UntilSignal() as until:
         studio = CompareStudio(model, result.traces, windows=windows, host=args.host,
-                               port=args.port)  # fmt: skip
+                               port=args.port, shadows=args.shadows)  # fmt: skip
         until.studio = studio
         try:
             announce(studio.url, "the replay (the sim's arm; the real arm a ghost)", studio)

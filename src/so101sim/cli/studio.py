@@ -32,7 +32,8 @@ DEFAULT_LINGER = 300.0
 
 
 def add_web_options(p: argparse.ArgumentParser, *, linger: bool = True) -> None:
-    """``--web``, ``--host``, ``--port`` (and, for commands that end, ``--linger``)."""
+    """``--web``, ``--host``, ``--port``, ``--no-shadows`` (and, for commands that end,
+    ``--linger``)."""
     g = p.add_argument_group("web studio (the arm in a browser; no display or GPU needed)")
     g.add_argument("--web", action="store_true", help="show it in a web browser (the studio)")
     g.add_argument(
@@ -44,6 +45,13 @@ def add_web_options(p: argparse.ArgumentParser, *, linger: bool = True) -> None:
     )
     g.add_argument(
         "--port", type=int, default=DEFAULT_PORT, help=f"the studio's port (default {DEFAULT_PORT})"
+    )
+    g.add_argument(
+        "--no-shadows",
+        dest="shadows",
+        action="store_false",
+        help="draw the page without shadows: about 3x less work for a browser that draws on "
+        "its CPU (no GPU, a slow page)",
     )
     if linger:
         g.add_argument(
@@ -130,7 +138,7 @@ def _studio(model: Any, args: argparse.Namespace, **kwargs: Any) -> Studio:
     # the studio (viser: the optional web extra) only for --web
     from ..studio import Studio
 
-    studio = Studio(model, host=args.host, port=args.port, **kwargs)
+    studio = Studio(model, host=args.host, port=args.port, shadows=args.shadows, **kwargs)
     try:
         announce(studio.url, studio=studio)
     except BaseException:  # Ctrl-C while the URL is printed: nothing left serving
@@ -247,7 +255,7 @@ def pose_web(args: argparse.Namespace) -> int:
 
     check_host(args.host)
     with _UntilSignal() as until:
-        studio = PoseStudio(args.model, host=args.host, port=args.port)
+        studio = PoseStudio(args.model, host=args.host, port=args.port, shadows=args.shadows)
         until.studio = studio.studio
         with studio:
             announce(studio.url, "the pose finder", studio.studio)

@@ -36,16 +36,24 @@ from typing import Any
 from .server import DEFAULT_HOST, DEFAULT_PORT, Studio, StudioError, require_viser
 
 
-def attach(sim: Any, *, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, speed: float = 1.0):
+def attach(
+    sim: Any,
+    *,
+    host: str = DEFAULT_HOST,
+    port: int = DEFAULT_PORT,
+    speed: float = 1.0,
+    shadows: bool = True,
+):
     """Serve a studio showing ``sim`` (a :class:`~so101sim.sim.Simulation`) and add its
     observer to ``sim.observers``: every move and hold is then shown live at ``speed`` times
-    real time. Returns the :class:`Studio` (``close()`` it; ``finish()`` to replay the run)."""
+    real time. Returns the :class:`Studio` (``close()`` it; ``finish()`` to replay the run).
+    ``shadows=False``: no shadows on the page (a browser without a GPU draws it faster)."""
     # start-up: the simulation and the live studio only when attached
     from ..sim.simulation import Pacer
     from .live import StudioObserver
 
     pacer = Pacer(speed)
-    studio = Studio(sim.model, host=host, port=port)
+    studio = Studio(sim.model, host=host, port=port, shadows=shadows)
     observer = StudioObserver(studio, pacer)
     sim.observers.append(observer)
     close = studio.close

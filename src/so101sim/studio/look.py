@@ -124,38 +124,44 @@ def model_sky(server: Any, model: mujoco.MjModel) -> None:
     server.scene.configure_fog(2.5, 7.0, color=_rgb(haze))
 
 
-def model_lights(server: Any, model: mujoco.MjModel) -> int:
+def model_lights(server: Any, model: mujoco.MjModel, *, shadows: bool = True) -> list[Any]:
     """The model's lights (directional and spot/point) and its headlight (an ambient light and
-    a light from the default view) in place of viser's defaults; returns the lights added."""
+    a light from the default view) in place of viser's defaults; returns their handles.
+    ``shadows=False``: no light casts a shadow (a browser drawing on its CPU, without a GPU,
+    then does about a third of the work: no shadow map each frame)."""
     server.scene.configure_default_lights(enabled=False)
     server.scene.configure_environment_map(hdri=None, environment_intensity=0.0)
     head = model.vis.headlight
-    server.scene.add_light_ambient(
-        "/lights/ambient", color=_rgb(np.ones(3)), intensity=float(np.mean(head.ambient)) * 2.0
-    )
+    lights = [
+        server.scene.add_light_ambient(
+            "/lights/ambient",
+            color=_rgb(np.ones(3)),
+            intensity=float(np.mean(head.ambient)) * 2.0,
+        )
+    ]
     eye = np.asarray(CAMERA_POSITION) - np.asarray(CAMERA_LOOK_AT)
-    server.scene.add_light_directional(
+    head_light = server.scene.add_light_directional(
         "/lights/headlight",
         color=_rgb(np.ones(3)),
         intensity=float(np.mean(head.diffuse)) * 2.0,
         wxyz=_pointing(-eye),
         position=tuple(eye * 3),
     )
-    count = 2
+    lights.append(head_light)
     for i in range(model.nlight):
         diffuse = float(np.mean(model.light_diffuse[i]))
         direction = np.asarray(model.light_dir[i], dtype=float)
         name = f"/lights/model_{i}"
-        server.scene.add_light_directional(
+        light = server.scene.add_light_directional(
             name,
             color=_rgb(model.light_diffuse[i] / max(diffuse, 1e-6)),
             intensity=diffuse * 3.0,
-            cast_shadow=bool(model.light_castshadow[i]),
+            cast_shadow=shadows and bool(model.light_castshadow[i]),
             wxyz=_pointing(direction),
             position=tuple(model.light_pos[i]),
         )
-        count += 1
-    return count
+        lights.append(light)
+    return lights
 
 
 def _pointing(direction: np.ndarray) -> tuple[float, float, float, float]:
@@ -184,10 +190,12 @@ def place_panel(server: Any) -> None:
     panel.set_width(PANEL_WIDTH)
 
 
-def dress(server: Any, model: mujoco.MjModel) -> None:
-    """The model's floor, sky and lights; the camera on the arm; the panel at the side."""
+def dress(server: Any, model: mujoco.MjModel, *, shadows: bool = True) -> list[Any]:
+    """The model's floor, sky and lights (``shadows``: see :func:`model_lights`); the camera on
+    the arm; the panel at the side. Returns the lights' handles."""
     model_floor(server, model)
     model_sky(server, model)
-    model_lights(server, model)
+    lights = model_lights(server, model, shadows=shadows)
     frame_camera(server)
     place_panel(server)
+    return lights

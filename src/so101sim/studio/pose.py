@@ -46,6 +46,7 @@ def _copy_button(label: str, text: str) -> str:
 
 class PoseStudio:
     """Pose the arm in a browser at :attr:`url`; :meth:`poses` yields the poses it is left in.
+    ``shadows``: as for :class:`~so101sim.studio.Studio`.
 
     Raises:
         StudioError: viser/mjviser are missing, or ``host:port`` is in use.
@@ -59,6 +60,7 @@ class PoseStudio:
         port: int = DEFAULT_PORT,
         start: Pose = STARTING_POSE,
         digits: int = 1,
+        shadows: bool = True,
     ) -> None:
         self.model, self.data = pose_scene(model, start)
         self.units = arm_units(self.model)
@@ -72,7 +74,12 @@ class PoseStudio:
         except ModelError:
             self._kin = None
         self.studio = Studio(
-            self.model, host=host, port=port, title="so101sim pose finder", controls=False
+            self.model,
+            host=host,
+            port=port,
+            title="so101sim pose finder",
+            controls=False,
+            shadows=shadows,
         )
         try:
             self._build()
