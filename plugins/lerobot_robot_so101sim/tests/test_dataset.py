@@ -140,12 +140,13 @@ def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take
     root = tmp_path / "ds"
     rig = tmp_path / "rig.toml"
     rig.write_text("[top]\npos = [0.2, 0.0, 0.8]\nlookat = [0.2, 0.0, 0.0]\nfovy = 60\n")
-    run(
+    out = run(
         [tool("so101sim"), "dataset", "pick_cube", "--episodes", "3", "-o", str(root),
          "--cameras", f"{rig},wrist", "--image-size", "64x48", "--workers", "2",
          "--no-progress"],
         tmp_path / "dataset.log",
     )  # fmt: skip
+    assert "wrote 3 episodes" in out and "Svt[" not in out  # no encoder chatter per video
     meta = json.loads((root / "meta" / "so101sim.json").read_text())
     assert meta["settings"]["cameras"][0]["pos"] == [0.2, 0.0, 0.8]  # the rig, kept with it
     assert [(c["name"], c["width"], c["height"]) for c in meta["cameras"]] == [
