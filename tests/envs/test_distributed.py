@@ -16,7 +16,7 @@ KWARGS = {"fps": 30, "cameras": ("wrist",), "image_size": (32, 32), "randomize":
 @pytest.mark.slow
 def test_episodes_on_a_local_ray_with_two_workers_equal_the_local_ones() -> None:
     pytest.importorskip("ray")
-    seeds = [5, 6, 7]
+    seeds = [5, 6]  # one episode a worker
     remote = list(expert_frames_on_ray("pick_cube", seeds, address="local", workers=2, **KWARGS))
     import ray
 
