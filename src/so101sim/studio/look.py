@@ -140,27 +140,29 @@ def model_lights(server: Any, model: mujoco.MjModel, *, shadows: bool = True) ->
         )
     ]
     eye = np.asarray(CAMERA_POSITION) - np.asarray(CAMERA_LOOK_AT)
-    head_light = server.scene.add_light_directional(
-        "/lights/headlight",
-        color=_rgb(np.ones(3)),
-        intensity=float(np.mean(head.diffuse)) * 2.0,
-        wxyz=_pointing(-eye),
-        position=tuple(eye * 3),
+    lights.append(
+        server.scene.add_light_directional(
+            "/lights/headlight",
+            color=_rgb(np.ones(3)),
+            intensity=float(np.mean(head.diffuse)) * 2.0,
+            wxyz=_pointing(-eye),
+            position=tuple(eye * 3),
+        )
     )
-    lights.append(head_light)
     for i in range(model.nlight):
         diffuse = float(np.mean(model.light_diffuse[i]))
         direction = np.asarray(model.light_dir[i], dtype=float)
         name = f"/lights/model_{i}"
-        light = server.scene.add_light_directional(
-            name,
-            color=_rgb(model.light_diffuse[i] / max(diffuse, 1e-6)),
-            intensity=diffuse * 3.0,
-            cast_shadow=shadows and bool(model.light_castshadow[i]),
-            wxyz=_pointing(direction),
-            position=tuple(model.light_pos[i]),
+        lights.append(
+            server.scene.add_light_directional(
+                name,
+                color=_rgb(model.light_diffuse[i] / max(diffuse, 1e-6)),
+                intensity=diffuse * 3.0,
+                cast_shadow=shadows and bool(model.light_castshadow[i]),
+                wxyz=_pointing(direction),
+                position=tuple(model.light_pos[i]),
+            )
         )
-        lights.append(light)
     return lights
 
 
