@@ -5,8 +5,10 @@ episode; success ends it ``after_success_s`` later."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from so101sim.envs import expert_frames
+from so101sim.envs import episode_steps_limit, expert_frames, make
+from so101sim.errors import SettingError
 from so101sim.units import STARTING_POSE
 
 
@@ -25,3 +27,18 @@ def test_expert_frames_are_one_deterministic_successful_take():
     assert a.randomization == {}
     c = expert_frames("pick_cube", 4, randomize="light", after_success_s=0.0)
     assert c.randomization and c.success
+
+
+def test_episode_steps_limit_is_the_environments_own_limit():
+    """The most frames an episode can have (a dataset writer sizes its queues with it)."""
+    for task, hz in (("pick_cube", 30), ("so101sim/Stack-v0", 25.0), ("push", 7)):
+        env = make(task, control_hz=hz)
+        try:
+            assert episode_steps_limit(task, hz) == env.unwrapped.max_episode_steps
+        finally:
+            env.close()
+    assert episode_steps_limit("pick_cube", 30) == 240  # 8 s at 30 Hz
+    with pytest.raises(SettingError, match="hz"):
+        episode_steps_limit("pick_cube", 0)
+    with pytest.raises(SettingError, match="unknown task"):
+        episode_steps_limit("juggle", 30)

@@ -183,6 +183,20 @@ def _randomize_options(preset: str) -> dict[str, Any]:
     return {} if preset == "none" else {"randomize": preset}
 
 
+def quiet_encoder_logs() -> None:
+    """Warnings and errors only from the video encoders, for a command that shows its own
+    progress: SVT-AV1 prints about 15 lines of its settings for every video it starts (two a
+    camera and episode) unless ``SVT_LOG`` says otherwise (left as the user set it), and
+    ffmpeg's muxer a line for each video file it finalises. Process-wide: for a command's
+    ``main``, not for a library."""
+    os.environ.setdefault("SVT_LOG", "1")
+    import av.logging
+
+    # ffmpeg's own threshold: LeRobot hands ffmpeg's logging back to its default printer
+    # after each video (av.logging.restore_default_callback), so PyAV's set_level is not enough
+    av.logging.set_libav_level(av.logging.WARNING)
+
+
 def generate_dataset(
     settings: DatasetSettings, progress: Callable[[Episode], None] | None = None
 ) -> DatasetReport:
@@ -195,6 +209,8 @@ def generate_dataset(
     """
     import datasets
     from lerobot.datasets import LeRobotDataset
+
+    from so101sim.envs import episode_steps_limit  # imported here: it imports MuJoCo
 
     datasets.disable_progress_bars()  # the caller shows the progress
     settings = settings.checked()
@@ -229,6 +245,10 @@ def generate_dataset(
             # writer keeps taking the workers' episodes while the encoder works
             streaming_encoding=settings.video and bool(settings.cameras),
             encoder_threads=ENCODER_THREADS,
+            # room for a whole episode's frames: LeRobot drops a frame (a warning, and a video
+            # shorter than the episode) when its encoder's queue stays full for 0.1 s, which a
+            # busy machine does when the frames come faster than real time, as they do here
+            encoder_queue_maxsize=episode_steps_limit(settings.task, settings.fps) + 1,
         )
         text = TASK_TEXT[settings.task]
         next_seed = settings.seed
@@ -307,5 +327,6 @@ __all__ = [
     "Episode",
     "dataset_features",
     "generate_dataset",
+    "quiet_encoder_logs",
     "simulate_episode",
 ]

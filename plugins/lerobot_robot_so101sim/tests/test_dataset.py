@@ -146,7 +146,8 @@ def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take
          "--no-progress"],
         tmp_path / "dataset.log",
     )  # fmt: skip
-    assert "wrote 3 episodes" in out and "Svt[" not in out  # no encoder chatter per video
+    assert "wrote 3 episodes" in out
+    assert "Svt[" not in out and "moov atom" not in out  # no encoder or muxer chatter per video
     meta = json.loads((root / "meta" / "so101sim.json").read_text())
     assert meta["settings"]["cameras"][0]["pos"] == [0.2, 0.0, 0.8]  # the rig, kept with it
     assert [(c["name"], c["width"], c["height"]) for c in meta["cameras"]] == [
@@ -210,3 +211,35 @@ def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take
     assert main(["policy-check", str(policy), "--robot-config", good]) == 0
     bad = robot("bad.json", {"top": {**cam, "width": 640, "height": 480}})
     assert main(["policy-check", str(policy), "--robot-config", bad]) == 1
+
+
+def test_a_slow_video_encoder_loses_no_frame(tmp_path, monkeypatch, caplog):
+    """The episodes arrive faster than real time, so on a busy machine LeRobot's video encoder
+    falls behind; its queue holds a whole episode, so no frame is dropped (LeRobot drops one
+    when the queue stays full for 0.1 s): each video has as many frames as its episode."""
+    import time
+
+    import av
+    from lerobot.datasets import compute_stats
+
+    update = compute_stats.RunningQuantileStats.update
+
+    def stalled(self, batch):  # the encoder thread stalls 0.5 s on each video's first frame
+        if self._count == 0:
+            time.sleep(0.5)
+        return update(self, batch)
+
+    monkeypatch.setattr(compute_stats.RunningQuantileStats, "update", stalled)
+    root = tmp_path / "ds"
+    report = generate_dataset(
+        DatasetSettings(
+            root=str(root), task="pick_cube", episodes=1, seed=3, cameras=("front", "wrist"),
+            image_size=(48, 64),
+        )
+    )  # fmt: skip
+    assert report.frames > 60  # more than the 30 frames LeRobot's default queue holds
+    assert "dropped" not in caplog.text
+    for cam in ("front", "wrist"):
+        (video,) = (root / "videos" / f"observation.images.{cam}").rglob("*.mp4")
+        with av.open(str(video)) as container:
+            assert sum(1 for _ in container.decode(video=0)) == report.frames, cam

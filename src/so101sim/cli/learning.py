@@ -192,9 +192,7 @@ def _workers(value: int | None) -> int:
 
 def cmd_dataset(args: argparse.Namespace) -> int:
     module = plugin_module("dataset")
-    # SVT-AV1, LeRobot's video encoder, prints about 15 lines of its settings for every video
-    # it starts (two a camera and episode): its errors only here, unless SVT_LOG says otherwise
-    os.environ.setdefault("SVT_LOG", "1")
+    module.quiet_encoder_logs()  # no encoder settings or muxer lines between the progress
     # start-up: the progress bar's module only when a dataset is written
     from tqdm import tqdm
 

@@ -16,6 +16,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.envs.registration import load_env_creator
 
 from ..errors import SettingError
 from ..recording import VideoRecorder, VideoSettings
@@ -68,6 +69,14 @@ def env_id(task: str) -> str:
         f"unknown task {task!r}; valid tasks are {', '.join(TASKS)} "
         f"(or the ids {', '.join(TASKS.values())})"
     )
+
+
+def episode_steps_limit(task: str, hz: float) -> int:
+    """The most steps an episode of ``task`` (a name or an id) takes at ``hz`` steps a
+    simulated second with its default time limit, as the environment counts them."""
+    hz = check_range(hz, "hz", low=1.0, high=500.0, unit=" Hz")  # as the environments take it
+    env_class = load_env_creator(gym.spec(env_id(task)).entry_point)
+    return max(1, round(float(env_class.default_episode_seconds) * hz))
 
 
 def make(task: str, **kwargs: Any) -> gym.Env:
