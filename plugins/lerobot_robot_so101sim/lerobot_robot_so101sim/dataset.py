@@ -248,7 +248,8 @@ def generate_dataset(
             # room for a whole episode's frames: LeRobot drops a frame (a warning, and a video
             # shorter than the episode) when its encoder's queue stays full for 0.1 s, which a
             # busy machine does when the frames come faster than real time, as they do here
-            # (at most one more copy of the episode in hand, which is already all in memory)
+            # (at most one more copy of the episode in hand, which is already all in memory;
+            # the + 1 is the end-of-video marker LeRobot puts after the last frame)
             encoder_queue_maxsize=episode_steps_limit(settings.task, settings.fps) + 1,
         )
         text = TASK_TEXT[settings.task]
