@@ -75,6 +75,12 @@ RenderMode = Literal["human", "rgb_array"]
 RENDER_MODES: tuple[str, ...] = get_args(RenderMode)
 
 
+def episode_steps(seconds: float, hz: float) -> int:
+    """The steps of an episode of ``seconds`` at ``hz`` steps a simulated second (at least
+    one): an environment's ``max_episode_steps``."""
+    return max(1, round(seconds * hz))
+
+
 @dataclass(frozen=True)
 class Evaluation:
     """How a task stands after a step: ``success``, the ``dense`` reward (0..1) and the
@@ -162,7 +168,7 @@ class So101TaskEnv(Observations, SceneState, gym.Env):
         self._period_steps = 1.0 / (hz * self.sim.timestep)  # physics steps per env step
         self.substeps = max(1, round(self._period_steps))  # nominal (exact at 25 Hz)
         self.control_hz = hz
-        self.max_episode_steps = max(1, round(seconds * hz))
+        self.max_episode_steps = episode_steps(seconds, hz)
         self._max_episode_steps = self.max_episode_steps  # where LeRobot's eval looks for it
         # a whole rate as an int: LeRobot's video writer (PyAV) refuses a float frame rate
         fps = int(hz) if float(hz).is_integer() else hz

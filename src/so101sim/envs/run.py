@@ -22,6 +22,7 @@ from ..errors import SettingError
 from ..recording import VideoRecorder, VideoSettings
 from ..scenes import CameraLike, camera_name, randomization
 from ..validation import check_count, check_range
+from .base import episode_steps
 from .expert import expert_for
 
 TASKS = {
@@ -76,7 +77,7 @@ def episode_steps_limit(task: str, hz: float) -> int:
     simulated second with its default time limit, as the environment counts them."""
     hz = check_range(hz, "hz", low=1.0, high=500.0, unit=" Hz")  # as the environments take it
     env_class = load_env_creator(gym.spec(env_id(task)).entry_point)
-    return max(1, round(float(env_class.default_episode_seconds) * hz))
+    return episode_steps(float(env_class.default_episode_seconds), hz)
 
 
 def make(task: str, **kwargs: Any) -> gym.Env:
