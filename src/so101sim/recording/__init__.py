@@ -21,7 +21,8 @@ however long the run.
 Rendering uses ``mujoco.Renderer`` on a private copy of the model (its offscreen buffer raised
 to the frame size), fed the simulation's joint angles: the physics model is never touched.
 The ``draft`` quality preset (the default on a CPU) swaps the visual meshes for simplified ones
-shipped in ``so101sim/data/draft_meshes`` and turns off shadows, reflections and
+shipped in ``so101sim/data/draft_meshes``, draws the infinite floor as a few quads instead of
+MuJoCo's 200 × 200 (the same pixels, :mod:`.floor`) and turns off shadows, reflections and
 multisampling, which makes a CPU renderer (Mesa llvmpipe) about 20× faster; ``full`` keeps the
 model's look. Importing this package sets no environment variable: the OpenGL backend is chosen
 when the first renderer starts (:func:`so101sim.gl.prepare_for_rendering`).
@@ -31,6 +32,7 @@ The modules, one job each:
 - :mod:`.settings`: :class:`VideoSettings`, quality presets, cameras;
 - :mod:`.paths`: output path checks, files written under a temporary name, write errors;
 - :mod:`.draft`: the private render model and the ``draft`` meshes;
+- :mod:`.floor`: the draft preset's infinite planes drawn as a few quads;
 - :mod:`.frames`: :class:`FrameRenderer` (offscreen frames) and the caption;
 - :mod:`.encoder`: the ffmpeg process a video is piped to, and reading a video back;
 - :mod:`.video`: :class:`VideoRecorder` (MP4), :func:`video_frames`;

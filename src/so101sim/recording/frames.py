@@ -17,6 +17,7 @@ import numpy as np
 from .. import gl
 from ..errors import RenderBackendError
 from .draft import render_model
+from .floor import as_infinite, finite_planes
 from .framing import view_for_run, workspace_frames
 from .settings import FREE_CAMERA, VideoSettings, check_camera, resolve_quality
 
@@ -83,6 +84,8 @@ class FrameRenderer:
         gl.prepare_for_rendering()
         self.quality = resolve_quality(s.quality)
         self.render_model = render_model(model, self.quality, s.width, s.height)
+        # draft: the floor drawn as a few quads, the same pixels (so101sim.recording.floor)
+        self._planes = finite_planes(self.render_model) if self.quality == "draft" else ()
         self.render_data = mujoco.MjData(self.render_model)
         self.renderer = self._start_renderer()
         self.camera = self._camera()
@@ -135,6 +138,7 @@ class FrameRenderer:
         mujoco.mj_comPos(rm, rd)
         mujoco.mj_camlight(rm, rd)
         self.renderer.update_scene(rd, camera=self.camera)
+        as_infinite(self.renderer.scene, rm, self._planes)
         self.renderer.render(out=self.frame)
         if self.settings.title:
             caption = f"{self.settings.title}   {caption or ''}".rstrip()
