@@ -1,11 +1,12 @@
 """An episode's start does not depend on the episodes before it (a randomised environment's
 reset gives the model, state and observation a new environment gives), and ``expert_frames``
-keeps its environment between clean episodes (a dataset worker makes it once) with the same
-episodes as a new environment."""
+keeps its environment between episodes, clean or randomised (a dataset worker makes it once),
+with the same episodes as a new environment."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from so101sim.envs import expert_frames, make
 from so101sim.envs import run as envs_run
@@ -34,14 +35,43 @@ def test_a_reset_after_a_randomised_episode_starts_as_a_new_environment_does() -
         new.close()
 
 
-def test_expert_frames_on_a_kept_environment_equal_a_new_one() -> None:
-    kw = {"cameras": ("wrist",), "image_size": (32, 32)}
+@pytest.mark.parametrize(
+    "randomize", [None, "light,textures=0.5,distractors=2"], ids=["clean", "randomised"]
+)
+def test_expert_frames_on_a_kept_environment_equal_a_new_one(randomize) -> None:
+    kw = {"cameras": ("wrist",), "image_size": (32, 32), "randomize": randomize}
     kept = [expert_frames("pick_cube", s, **kw) for s in (5, 6)]  # the second on a kept env
+    assert "env" in envs_run._KEPT  # kept, randomised or not
     envs_run._close_kept()
     new = expert_frames("pick_cube", 6, **kw)
-    assert kept[1].success_frame == new.success_frame
+    assert kept[1].success and kept[1].success_frame == new.success_frame
     np.testing.assert_array_equal(kept[1].actions, new.actions)
     np.testing.assert_array_equal(kept[1].states, new.states)
     np.testing.assert_array_equal(kept[1].images["wrist"], new.images["wrist"])
+    assert kept[1].randomization == new.randomization
+    assert bool(new.randomization) is (randomize is not None)
     envs_run._close_kept()
     assert "env" not in envs_run._KEPT
+
+
+def test_the_sag_aim_follows_the_servos_stiffness_as_it_is_now() -> None:
+    """The experts aim through the sag with the stiffness the model has at each call (an
+    environment's physical randomisation changes it at each reset), not the one it had when
+    the expert was made: on a kept environment that was the previous episode's."""
+    from so101sim.envs.planning import ThroughSag
+    from so101sim.model.index import arm_index
+
+    env = make("pick_cube", **KW)
+    try:
+        model = env.unwrapped.model
+        aim = ThroughSag(model)
+        target = np.array([0.0, -20.0, 30.0, 40.0, 0.0, 10.0])
+        before = aim(target)
+        act = arm_index(model).actuator
+        model.actuator_biasprm[act, 1] *= 2.0  # twice as stiff: half the sag to aim through
+        after = aim(target)
+        np.testing.assert_allclose(after[:5] - target[:5], (before[:5] - target[:5]) / 2, atol=1e-9)
+        np.testing.assert_allclose(after, ThroughSag(model)(target), atol=1e-12)
+        assert np.abs(before[1:4] - target[1:4]).max() > 0.1  # there is a sag to aim through
+    finally:
+        env.close()

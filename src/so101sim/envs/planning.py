@@ -129,6 +129,10 @@ class ThroughSag:
     it is a few degrees; on the vendored ideal actuators (998 N·m/rad) next to nothing. The
     gripper is left as asked. Coulomb friction (the servo's dead band, about 1°) is not
     compensated: it has no one sign.
+
+    The stiffness and the masses are read from the model at each call, so a model changed
+    after this was made (an environment's physical randomisation at each reset) is aimed
+    through as it is now: the same targets whatever episodes the environment ran before.
     """
 
     def __init__(self, model: mujoco.MjModel) -> None:
@@ -136,10 +140,14 @@ class ThroughSag:
         self.data = mujoco.MjData(model)  # scratch: the pose is written, the physics not stepped
         idx = arm_index(model)
         self.units = arm_units(model)
-        self.qpos, self.dof = idx.qpos, idx.dof
-        self.kp = -model.actuator_biasprm[idx.actuator, 1].copy()
-        self.body = (np.arange(len(idx.qpos)) != GRIPPER_INDEX) & (self.kp > 0)
+        self.qpos, self.dof, self.actuator = idx.qpos, idx.dof, idx.actuator
+        self._arm = np.arange(len(idx.qpos)) != GRIPPER_INDEX
         self._force = np.zeros(model.nv)
+
+    @property
+    def kp(self) -> np.ndarray:
+        """Each joint's servo stiffness now (N·m/rad, from ``-actuator_biasprm[1]``)."""
+        return -self.model.actuator_biasprm[self.actuator, 1]
 
     def __call__(self, target: np.ndarray) -> np.ndarray:
         """``target`` (arm units, six values) as the command that holds the arm there."""
@@ -150,7 +158,8 @@ class ThroughSag:
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
         mujoco.mj_rne(m, d, 0, self._force)  # gravity alone: the joints are still
-        kp = np.where(self.body, self.kp, 1.0)
-        shift = np.where(self.body, self._force[self.dof] / kp, 0.0)
+        kp = self.kp
+        body = self._arm & (kp > 0)
+        shift = np.where(body, self._force[self.dof] / np.where(body, kp, 1.0), 0.0)
         lower, upper = self.units.limits
         return np.clip(self.units.from_radians(q + shift), lower, upper)

@@ -20,7 +20,7 @@ from gymnasium.envs.registration import load_env_creator
 
 from ..errors import SettingError
 from ..recording import VideoRecorder, VideoSettings
-from ..scenes import CameraLike, camera_name, randomization
+from ..scenes import CameraLike, camera_name
 from ..validation import check_count, check_range
 from .base import episode_steps
 from .expert import expert_for
@@ -304,14 +304,8 @@ def expert_frames(
         "terminate_on_success": False,
         "randomize": randomize,
     }
-    if randomize is not None and randomization(randomize).active:
-        # a randomised scene: a new environment each episode (on a kept one the episodes
-        # drawn from a seed differed slightly after the grasp; not yet found why)
-        env = make(task, **options)
-        try:
-            return _expert_episode(env, seed, cameras, fps, after_success_s)
-        finally:
-            env.close()
+    # randomised or not, the environment is kept: reset(seed) sets everything an episode
+    # depends on, the randomisation's draws included (tests/envs/test_reset_history.py)
     with _kept_env(task, options) as env:
         return _expert_episode(env, seed, cameras, fps, after_success_s)
 
