@@ -1,13 +1,15 @@
-"""Tests of so101sim.recording.floor: the draft preset draws the infinite floor as a few quads,
-and the frames stay those of MuJoCo's 200 × 200 grid."""
+"""Tests of so101sim.recording.floor: the draft preset draws an infinite floor as a few quads,
+and the frames stay those of MuJoCo's 200 × 200 grid (within 2 grey levels)."""
 
 from __future__ import annotations
+
+import copy
 
 import mujoco
 import numpy as np
 import pytest
 
-from so101sim import Simulation
+from so101sim import Simulation, gl
 from so101sim import recording as rec
 from so101sim.recording import floor, frames
 
@@ -16,32 +18,43 @@ VIEWS = {
     "arm": {"width": 160, "height": 120},
     # low over the floor: the horizon, its haze and the far tiles
     "horizon": {"width": 320, "height": 240, "elevation": -3.0, "distance": 2.0},
+    # 40 m away: MuJoCo moves an infinite plane under the camera, a finite one stays put
+    "far away": {"width": 160, "height": 120, "lookat": (30.0, -25.0, 0.0), "distance": 3.0},
 }
 
 
 def _frames(
-    monkeypatch, sim: Simulation, view: dict, few_quads: bool
+    monkeypatch, model: mujoco.MjModel, data: mujoco.MjData, view: dict, few_quads: bool
 ) -> tuple[np.ndarray, rec.FrameRenderer]:
+    """Frames of two arm poses (or the model's state twice), with MuJoCo's grid or the quads."""
     with monkeypatch.context() as m:
         if not few_quads:
             m.setattr(frames, "finite_planes", lambda model: ())
-        fr = rec.FrameRenderer(sim.model, rec.VideoSettings(caption=False, quality="draft", **view))
+        fr = rec.FrameRenderer(model, rec.VideoSettings(caption=False, quality="draft", **view))
     try:
+        fr.render(data)  # MuJoCo re-centres an infinite plane under the previous frame's camera
         shots = []
         for q in (np.zeros(6), np.array([0.6, -0.8, 0.9, 0.4, -1.0, 0.3])):
-            sim.data.qpos[:6] = q
-            mujoco.mj_forward(sim.model, sim.data)
-            shots.append(fr.render(sim.data).copy())
+            if model.nq == 6:  # the arm alone: two poses
+                data.qpos[:6] = q
+            mujoco.mj_forward(model, data)
+            shots.append(fr.render(data).copy())
         return np.stack(shots), fr
     finally:
         fr.close()
 
 
+def _assert_same(grid: np.ndarray, quads: np.ndarray, what: str, mean: float = 0.01) -> None:
+    diff = np.abs(grid.astype(int) - quads.astype(int))
+    assert diff.max() <= 2, f"{what}: {diff.max()} grey levels apart"
+    assert diff.mean() < mean, f"{what}: {diff.mean()} grey levels apart on average"
+
+
 @pytest.mark.parametrize("view", VIEWS, ids=list(VIEWS))
 def test_the_floor_drawn_as_a_few_quads_gives_the_same_frames(monkeypatch, view):
     sim = Simulation()
-    grid, plain = _frames(monkeypatch, sim, VIEWS[view], few_quads=False)
-    quads, fast = _frames(monkeypatch, sim, VIEWS[view], few_quads=True)
+    grid, plain = _frames(monkeypatch, sim.model, sim.data, VIEWS[view], few_quads=False)
+    quads, fast = _frames(monkeypatch, sim.model, sim.data, VIEWS[view], few_quads=True)
     assert plain._planes == () and len(fast._planes) == 1
     fid = fast._planes[0]
     assert mujoco.mj_id2name(sim.model, mujoco.mjtObj.mjOBJ_GEOM, fid) == "floor"
@@ -49,11 +62,9 @@ def test_the_floor_drawn_as_a_few_quads_gives_the_same_frames(monkeypatch, view)
     zfar = rm.vis.map.zfar * rm.stat.extent
     assert (rm.geom_size[fid, :2] > zfar).all()  # finite, and past the far clipping plane
     assert (sim.model.geom_size[fid, :2] == 0).all()  # the physics model keeps its floor
-    floor_px = (quads[..., 2] > quads[..., 0]).mean()  # the blue checker fills much of each frame
-    assert floor_px > 0.3
-    diff = np.abs(grid.astype(int) - quads.astype(int))
-    assert diff.max() <= 2, f"{view}: {diff.max()} grey levels apart"
-    assert diff.mean() < 0.01
+    checker = quads[..., 2].astype(int) - quads[..., 0]  # the blue checker, lit and in view
+    assert (checker > 10).mean() > 0.3
+    _assert_same(grid, quads, view)
 
 
 def test_the_full_preset_keeps_the_models_floor():
@@ -69,25 +80,77 @@ def test_the_full_preset_keeps_the_models_floor():
 
 PLANE_XML = """
 <mujoco>
+  <visual><headlight specular="0 0 0"/></visual>
   <asset>
     <texture name="t" type="2d" builtin="checker" width="8" height="8" rgb1="1 1 1" rgb2="0 0 0"/>
-    <material name="m" texture="t" texrepeat="3 4" texuniform="{uniform}"/>
+    <material name="m" texture="t" texrepeat="3 4" texuniform="{uniform}" specular="0"/>
   </asset>
   <worldbody>
-    <geom name="floor" type="plane" size="{size}" material="m"/>
-    <body><freejoint/><geom type="box" size=".1 .1 .1"/></body>
+    <light {light} dir="0 0 -1" pos="0 0 3"/>
+    <geom name="floor" type="plane" size="{size}" material="m" pos="0.37 -0.21 0.05"
+          euler="0 0 23"/>
+    <body pos="0 0 .3"><freejoint/><geom type="box" size=".1 .1 .1" rgba=".8 .2 .2 1"/></body>
   </worldbody>
 </mujoco>
 """
 
 
+def _plane_frames(model: mujoco.MjModel, view: mujoco.MjvCamera, few_quads: bool) -> np.ndarray:
+    """Frames of a model that is not an arm, drawn as FrameRenderer draws (without its arm)."""
+    rm = copy.copy(model)
+    planes = floor.finite_planes(rm) if few_quads else ()
+    data = mujoco.MjData(rm)
+    mujoco.mj_forward(rm, data)
+    renderer = mujoco.Renderer(rm, height=120, width=160)
+    try:
+        shots = []
+        for _ in range(3):
+            camera = floor.head(renderer.scene)
+            renderer.update_scene(data, camera=view)
+            floor.as_infinite(renderer.scene, rm, planes, camera)
+            shots.append(renderer.render().copy())
+        return np.stack(shots[1:]), planes
+    finally:
+        renderer.close()
+
+
 @pytest.mark.parametrize(
-    ("uniform", "size", "changed"),
-    [("true", "0 0 .05", True), ("false", "0 0 .05", False), ("true", "0 2 .05", False)],
-    ids=["texuniform", "not-texuniform", "infinite-one-way"],
+    ("elevation", "distance", "lookat"),
+    [(-35.0, 3.0, (0.0, 0.0, 0.0)), (-4.0, 2.0, (-12.0, 7.0, 0.0))],
+    ids=["near", "low and far"],
 )
-def test_only_infinite_planes_whose_texture_phase_can_be_kept_are_changed(uniform, size, changed):
-    model = mujoco.MjModel.from_xml_string(PLANE_XML.format(uniform=uniform, size=size))
+def test_a_turned_and_moved_plane_with_its_own_texture_repeat_keeps_its_frames(
+    elevation, distance, lookat
+):
+    """Another floor than the shipped one: turned 23° about z, off the origin, a texture repeat
+    that differs along its two sides (the phase is matched per side), white and black."""
+    gl.prepare_for_rendering()
+    xml = PLANE_XML.format(uniform="true", size="0 0 .05", light='directional="true"')
+    model = mujoco.MjModel.from_xml_string(xml)
+    view = mujoco.MjvCamera()
+    view.lookat[:], view.distance, view.elevation, view.azimuth = lookat, distance, elevation, 60
+    grid, _ = _plane_frames(model, view, few_quads=False)
+    quads, planes = _plane_frames(model, view, few_quads=True)
+    assert planes == (0,)
+    assert (np.abs(quads.astype(int)[..., 1] - 128) > 60).mean() > 0.3  # the checker in view
+    # black against white: the texture's sampling rounds a grey level either way on more pixels
+    _assert_same(grid, quads, f"elevation {elevation}", mean=0.25)
+
+
+@pytest.mark.parametrize(
+    ("uniform", "size", "light", "changed"),
+    [
+        ("true", "0 0 .05", 'directional="true"', True),
+        ("false", "0 0 .05", 'directional="true"', False),
+        ("true", "0 2 .05", 'directional="true"', False),
+        ("true", "0 0 .05", 'directional="false"', False),
+    ],
+    ids=["texuniform", "not-texuniform", "infinite-one-way", "point-light"],
+)
+def test_only_planes_whose_look_the_quads_keep_are_changed(uniform, size, light, changed):
+    model = mujoco.MjModel.from_xml_string(
+        PLANE_XML.format(uniform=uniform, size=size, light=light)
+    )
     before = model.geom_size.copy()
     ids = floor.finite_planes(model)
     assert bool(ids) is changed

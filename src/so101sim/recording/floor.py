@@ -1,25 +1,33 @@
 """Infinite planes (the floor) drawn as a few large quads instead of MuJoCo's 200 × 200, for the
-``draft`` preset: the same pixels, at about half the cost of a small frame on a CPU renderer.
+``draft`` preset: nearly the same pixels, at about half the cost of a small frame on a CPU
+renderer.
 
 MuJoCo's classic renderer draws a plane whose two half sizes are 0 as a grid of
 ``mjMAXPLANEGRID`` × ``mjMAXPLANEGRID`` (200 × 200) quads reaching past the far clipping plane,
-and a finite plane as a grid whose spacing is its third size. The quads are lit per vertex, and
-under directional lights (the shipped scene's) lighting a plane is linear across it, so the
-grid's density changes nothing; but a CPU rasteriser transforms and clips all 160 000 vertices
-for every frame: about half the cost of a 160 × 120 camera image.
+moved under the camera in steps of two texture periods at each ``mjv_updateScene``, and a
+finite plane as a grid whose spacing is its third size. A CPU rasteriser transforms all
+160 000 vertices for every frame: about half the cost of a 160 × 120 camera image. The quads
+are lit per vertex; under directional lights a plane's diffuse light is the same all over it,
+so the grid's density changes nothing there. What it does change: the specular highlight
+(lit per vertex on either grid: it differs where a camera looks almost straight down on the
+bare floor) and which of two surfaces in the floor's own plane wins the depth test.
 
 :func:`finite_planes` gives each infinite plane of a *render model* (a private copy: the physics
 model is never touched) the size MuJoCo's renderer draws it at, with a spacing of half that
-size, before the renderer's context is made. After each ``mjv_updateScene``,
-:func:`as_infinite` puts back what an infinite plane has in the scene and a finite one lacks:
+size, before the renderer's context is made; it changes nothing in a model with a point or
+spot light (their light falls off across the plane) or a plane whose texture is not a
+``texuniform`` 2-D one. After each ``mjv_updateScene``, :func:`as_infinite` puts back what an
+infinite plane has in the scene and a finite one lacks: MuJoCo's re-centring under the camera,
 its texture's phase (a finite plane's texture is anchored at its corner, an infinite one's at
 its centre: the plane is shifted in its own frame by less than one texture period, which moves
 no pixel of the plane itself) and the horizon haze, which MuJoCo draws for the first infinite
 plane of the scene (a zero-size infinite plane is added at the floor's place: it covers no
-pixel). ``tests/recording/test_floor.py`` checks that the frames stay within one grey level.
+pixel). ``tests/recording/test_floor.py`` compares the frames with MuJoCo's own grid.
 """
 
 from __future__ import annotations
+
+import logging
 
 import mujoco
 import numpy as np
@@ -29,6 +37,9 @@ GRID = 200
 _PLANE = int(mujoco.mjtGeom.mjGEOM_PLANE)
 _GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
 _RGB = int(mujoco.mjtTextureRole.mjTEXROLE_RGB)
+_TEX2D = int(mujoco.mjtTexture.mjTEXTURE_2D)
+_DIRECTIONAL = int(mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
+log = logging.getLogger(__name__)
 
 
 def _infinite(model: mujoco.MjModel) -> np.ndarray:
@@ -54,9 +65,12 @@ def finite_planes(model: mujoco.MjModel) -> tuple[int, ...]:
     ids = _infinite(model)
     if half_infinite.any() or not len(ids):
         return ()
+    if (model.light_type != _DIRECTIONAL).any():
+        return ()  # a point or spot light's falls off across the plane: per vertex, it matters
     for g in ids:
         mat = int(model.geom_matid[g])
-        if mat >= 0 and model.mat_texid[mat, _RGB] >= 0 and not model.mat_texuniform[mat]:
+        tex = int(model.mat_texid[mat, _RGB]) if mat >= 0 else -1
+        if tex >= 0 and (model.tex_type[tex] != _TEX2D or not model.mat_texuniform[mat]):
             return ()
     zfar = float(model.vis.map.zfar * model.stat.extent)
     for g in ids:
@@ -69,10 +83,29 @@ def finite_planes(model: mujoco.MjModel) -> tuple[int, ...]:
     return tuple(int(g) for g in ids)
 
 
-def as_infinite(scene: mujoco.MjvScene, model: mujoco.MjModel, planes: tuple[int, ...]) -> None:
-    """After ``mjv_updateScene``: shift each plane of ``planes`` (from :func:`finite_planes` on
-    ``model``) so its texture lies where the infinite plane's does, and add the zero-size
-    infinite plane that makes MuJoCo draw the horizon haze."""
+def _grid_step(model: mujoco.MjModel, geom: int) -> np.ndarray:
+    """MuJoCo's step for an infinite plane's grid along each side: one texture period (2 /
+    texrepeat), else 1/198 of the grid's width."""
+    mat = int(model.geom_matid[geom])
+    rep = model.mat_texrepeat[mat] if mat >= 0 else np.zeros(2)
+    zfar = float(model.vis.map.zfar * model.stat.extent)
+    return np.where(rep > 0, 2.0 / np.where(rep > 0, rep, 1.0), 2.1 * zfar / (GRID - 2))
+
+
+def head(scene: mujoco.MjvScene) -> np.ndarray:
+    """The scene's camera position (the middle of its two eyes), as :func:`as_infinite` needs
+    it: read it *before* ``mjv_updateScene``, which re-centres infinite planes under the camera
+    of the previous update (it updates the camera after the geoms)."""
+    return 0.5 * (np.asarray(scene.camera[0].pos, float) + np.asarray(scene.camera[1].pos, float))
+
+
+def as_infinite(
+    scene: mujoco.MjvScene, model: mujoco.MjModel, planes: tuple[int, ...], camera: np.ndarray
+) -> None:
+    """After ``mjv_updateScene``: move each plane of ``planes`` (from :func:`finite_planes` on
+    ``model``) where MuJoCo puts an infinite plane (under ``camera``, :func:`head` before the
+    update, in steps of two grid steps) with its texture where the infinite plane's is, and
+    add the zero-size infinite plane that makes MuJoCo draw the horizon haze."""
     if not planes:
         return
     marker = None
@@ -80,23 +113,25 @@ def as_infinite(scene: mujoco.MjvScene, model: mujoco.MjModel, planes: tuple[int
         g = scene.geoms[i]
         if g.objtype != _GEOM or g.objid not in planes:
             continue
+        pos = np.asarray(g.pos, dtype=float)
+        rot = np.asarray(g.mat, dtype=float).reshape(3, 3)  # columns: the plane's axes
+        if marker is None:
+            marker = (pos.copy(), rot.flatten())
         half = model.geom_size[g.objid, :2]
         scale = _texture_scale(model, g.objid)
         period = 2.0 / scale
-        shift = np.array(
-            [(half[0] + 1.0 / scale[0]) % period[0], (-half[1] - 1.0 / scale[1]) % period[1], 0.0]
-        )
-        rot = np.asarray(g.mat, dtype=float).reshape(3, 3)
-        if marker is None:
-            marker = (np.array(g.pos, dtype=float), rot.flatten())
-        g.pos[:] = g.pos + rot @ shift
-    if marker is not None and scene.ngeom < scene.maxgeom:
-        mujoco.mjv_initGeom(
-            scene.geoms[scene.ngeom],
-            _PLANE,
-            np.zeros(3),
-            marker[0],
-            marker[1],
-            np.zeros(4, dtype=np.float32),
-        )
-        scene.ngeom += 1
+        phase = [(half[0] + 1.0 / scale[0]) % period[0], (-half[1] - 1.0 / scale[1]) % period[1]]
+        step = _grid_step(model, g.objid)
+        along = rot[:, :2].T @ (camera - pos)  # the camera from the plane, on its two axes
+        centre = 2.0 * step * np.floor(0.5 * along / step + 0.5)  # MuJoCo's re-centring
+        g.pos[:] = pos + rot[:, :2] @ (centre + np.asarray(phase))
+    if marker is None:
+        return
+    if scene.ngeom >= scene.maxgeom:
+        log.debug("the scene is full (%d geoms): the horizon haze is not drawn", scene.maxgeom)
+        return
+    haze = scene.geoms[scene.ngeom]
+    mujoco.mjv_initGeom(haze, _PLANE, np.zeros(3), marker[0], marker[1], np.zeros(4, np.float32))
+    haze.objtype, haze.objid, haze.segid = int(mujoco.mjtObj.mjOBJ_UNKNOWN), -1, -1
+    haze.category = int(mujoco.mjtCatBit.mjCAT_DECOR)
+    scene.ngeom += 1
