@@ -32,7 +32,7 @@ def _frames(
             m.setattr(frames, "finite_planes", lambda model: ())
         fr = rec.FrameRenderer(model, rec.VideoSettings(caption=False, quality="draft", **view))
     try:
-        fr.render(data)  # MuJoCo re-centres an infinite plane under the previous frame's camera
+        fr.render(data)  # MuJoCo re-centres its infinite plane under the previous frame's camera
         shots = []
         for q in (np.zeros(6), np.array([0.6, -0.8, 0.9, 0.4, -1.0, 0.3])):
             if model.nq == 6:  # the arm alone: two poses
@@ -105,9 +105,8 @@ def _plane_frames(model: mujoco.MjModel, view: mujoco.MjvCamera, few_quads: bool
     try:
         shots = []
         for _ in range(3):
-            camera = floor.head(renderer.scene)
             renderer.update_scene(data, camera=view)
-            floor.as_infinite(renderer.scene, rm, planes, camera)
+            floor.as_infinite(renderer.scene, rm, planes)
             shots.append(renderer.render().copy())
         return np.stack(shots[1:]), planes
     finally:
@@ -160,3 +159,30 @@ def test_only_planes_whose_look_the_quads_keep_are_changed(uniform, size, light,
     zfar = model.vis.map.zfar * model.stat.extent
     # MuJoCo's grid: 200 steps of (2.1 zfar + 2 × one texture period) / 200 along each side
     np.testing.assert_allclose(model.geom_size[0, :2], [1.05 * zfar + 2 / 3, 1.05 * zfar + 2 / 4])
+
+
+def test_a_frame_depends_only_on_the_state_and_the_camera_not_on_what_was_drawn_before():
+    """The same state drawn again, after other states and far-away views, is the same frame to
+    the bit (MuJoCo's own re-centring lags one frame: the quads follow this frame's camera)."""
+    sim = Simulation()
+    settings = rec.VideoSettings(width=96, height=72, caption=False, quality="draft")
+    fr = rec.FrameRenderer(sim.model, settings)
+    try:
+        assert fr._planes
+        mujoco.mj_forward(sim.model, sim.data)
+        start = sim.data.qpos.copy()
+        first = fr.render(sim.data).copy()
+        home = fr.camera
+        for lookat in ((20.0, 0.0, 0.0), (0.0, -35.0, 0.0)):
+            fr.camera = mujoco.MjvCamera()
+            fr.camera.lookat[:], fr.camera.distance = lookat, 2.0
+            fr.render(sim.data)
+        fr.camera = home
+        sim.data.qpos[:6] = [0.6, -0.8, 0.9, 0.4, -1.0, 0.3]
+        mujoco.mj_forward(sim.model, sim.data)
+        fr.render(sim.data)
+        sim.data.qpos[:] = start
+        mujoco.mj_forward(sim.model, sim.data)
+        np.testing.assert_array_equal(fr.render(sim.data), first)
+    finally:
+        fr.close()

@@ -93,21 +93,23 @@ def _grid_step(model: mujoco.MjModel, geom: int) -> np.ndarray:
 
 
 def head(scene: mujoco.MjvScene) -> np.ndarray:
-    """The scene's camera position (the middle of its two eyes), as :func:`as_infinite` needs
-    it: read it *before* ``mjv_updateScene``, which re-centres infinite planes under the camera
-    of the previous update (it updates the camera after the geoms)."""
+    """The scene's camera position (the middle of its two eyes)."""
     return 0.5 * (np.asarray(scene.camera[0].pos, float) + np.asarray(scene.camera[1].pos, float))
 
 
-def as_infinite(
-    scene: mujoco.MjvScene, model: mujoco.MjModel, planes: tuple[int, ...], camera: np.ndarray
-) -> None:
+def as_infinite(scene: mujoco.MjvScene, model: mujoco.MjModel, planes: tuple[int, ...]) -> None:
     """After ``mjv_updateScene``: move each plane of ``planes`` (from :func:`finite_planes` on
-    ``model``) where MuJoCo puts an infinite plane (under ``camera``, :func:`head` before the
-    update, in steps of two grid steps) with its texture where the infinite plane's is, and
-    add the zero-size infinite plane that makes MuJoCo draw the horizon haze."""
+    ``model``) where MuJoCo puts an infinite plane (under the camera, in steps of two grid
+    steps) with its texture where the infinite plane's is, and add the zero-size infinite
+    plane that makes MuJoCo draw the horizon haze.
+
+    MuJoCo re-centres under the camera of the *previous* update (``mjv_updateScene`` updates
+    the camera after the geoms); this uses this update's camera, so that a frame depends only
+    on the state and the camera drawn, not on what was drawn before (a grid moved by two
+    steps rounds the shading of some pixels a grey level the other way)."""
     if not planes:
         return
+    camera = head(scene)
     marker = None
     for i in range(scene.ngeom):
         g = scene.geoms[i]

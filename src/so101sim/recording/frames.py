@@ -17,7 +17,7 @@ import numpy as np
 from .. import gl
 from ..errors import RenderBackendError
 from .draft import render_model
-from .floor import as_infinite, finite_planes, head
+from .floor import as_infinite, finite_planes
 from .framing import view_for_run, workspace_frames
 from .settings import FREE_CAMERA, VideoSettings, check_camera, resolve_quality
 
@@ -137,10 +137,8 @@ class FrameRenderer:
         mujoco.mj_kinematics(rm, rd)
         mujoco.mj_comPos(rm, rd)
         mujoco.mj_camlight(rm, rd)
-        camera = head(self.renderer.scene) if self._planes else None
         self.renderer.update_scene(rd, camera=self.camera)
-        if camera is not None:
-            as_infinite(self.renderer.scene, rm, self._planes, camera)
+        as_infinite(self.renderer.scene, rm, self._planes)
         self.renderer.render(out=self.frame)
         if self.settings.title:
             caption = f"{self.settings.title}   {caption or ''}".rstrip()
