@@ -13,31 +13,21 @@ import argparse
 import json
 import os
 import statistics
-import time
 
 import numpy as np
 
 
 def frames_and_ms(size: tuple[int, int], frames: int, few_quads: bool) -> tuple[np.ndarray, float]:
-    from so101sim.envs.run import make
+    from bench_small_meshes import time_cameras  # this folder: run as bench/bench_floor.py
+
     from so101sim.recording import frames as frames_module
 
     old = frames_module.finite_planes
     if not few_quads:
         frames_module.finite_planes = lambda model: ()  # MuJoCo's infinite plane, as before
-    env = make("pick_cube", cameras=["front", "wrist"], image_size=size, quality="draft")
     try:
-        env.reset(seed=0)
-        u = env.unwrapped
-        rs = [u._renderer(c, size) for c in ("front", "wrist")]  # the observations' renderers
-        shots = np.stack([r.render(u.sim.data).copy() for r in rs])
-        t0 = time.perf_counter()
-        for _ in range(frames):
-            for r in rs:
-                r.render(u.sim.data)
-        return shots, (time.perf_counter() - t0) / (2 * frames) * 1000
+        return time_cameras(size, frames)
     finally:
-        env.close()
         frames_module.finite_planes = old
 
 

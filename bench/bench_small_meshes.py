@@ -15,27 +15,37 @@ import os
 import statistics
 import time
 
+import numpy as np
 
-def ms_per_frame(size: tuple[int, int], frames: int, small: bool) -> float:
+
+def time_cameras(size: tuple[int, int], frames: int) -> tuple[np.ndarray, float]:
+    """The first front and wrist frames of ``pick_cube`` at ``size`` (h, w), draft quality, and
+    the milliseconds per camera frame over ``frames`` more (the observations' renderers)."""
     from so101sim.envs.run import make
-    from so101sim.recording import draft
 
-    old = draft.SMALL_FRAME_PX
-    draft.SMALL_FRAME_PX = 4096 if small else 0  # which mesh set render_model picks
     env = make("pick_cube", cameras=["front", "wrist"], image_size=size, quality="draft")
     try:
         env.reset(seed=0)
         u = env.unwrapped
-        rs = [u._renderer(c, size) for c in ("front", "wrist")]  # the observations' renderers
-        for r in rs:
-            r.render(u.sim.data)
+        rs = [u._renderer(c, size) for c in ("front", "wrist")]
+        shots = np.stack([r.render(u.sim.data).copy() for r in rs])
         t0 = time.perf_counter()
         for _ in range(frames):
             for r in rs:
                 r.render(u.sim.data)
-        return (time.perf_counter() - t0) / (2 * frames) * 1000
+        return shots, (time.perf_counter() - t0) / (2 * frames) * 1000
     finally:
         env.close()
+
+
+def ms_per_frame(size: tuple[int, int], frames: int, small: bool) -> float:
+    from so101sim.recording import draft
+
+    old = draft.SMALL_FRAME_PX
+    draft.SMALL_FRAME_PX = 4096 if small else 0  # which mesh set render_model picks
+    try:
+        return time_cameras(size, frames)[1]
+    finally:
         draft.SMALL_FRAME_PX = old
 
 
