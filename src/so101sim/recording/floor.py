@@ -74,11 +74,7 @@ def finite_planes(model: mujoco.MjModel) -> tuple[int, ...]:
             return ()
     zfar = float(model.vis.map.zfar * model.stat.extent)
     for g in ids:
-        mat = int(model.geom_matid[g])
-        rep = model.mat_texrepeat[mat] if mat >= 0 else np.zeros(2)
-        # MuJoCo's grid step along each side: one texture period, else the grid's own
-        step = np.where(rep > 0, 2.0 / np.where(rep > 0, rep, 1.0), 2.1 * zfar / (GRID - 2))
-        half = (2.1 * zfar + 2.0 * step) / 2.0
+        half = (2.1 * zfar + 2.0 * _grid_step(model, g)) / 2.0  # MuJoCo's grid's extent
         model.geom_size[g] = [half[0], half[1], float(half.max()) / 2.0]
     return tuple(int(g) for g in ids)
 
