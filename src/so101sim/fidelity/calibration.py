@@ -109,11 +109,13 @@ def to_arm_units(
     mode: str,
     calibration: str | Path | None,
     warnings: list[str],
-) -> tuple[np.ndarray, np.ndarray, bool]:
+) -> tuple[np.ndarray, np.ndarray, bool, np.ndarray | None]:
     """Commands and measurements (``(n, 6)`` each, as recorded) in arm units (degrees, the
-    gripper 0–100), by ``mode`` (``auto``, ``degrees``, ``range``; module docstring), and
-    whether the body joints' degrees are a guess (range mode without a calibration JSON:
-    :data:`RANGE_GUESS`)."""
+    gripper 0–100), by ``mode`` (``auto``, ``degrees``, ``range``; module docstring), whether
+    the body joints' degrees are a guess (range mode without a calibration JSON:
+    :data:`RANGE_GUESS`), and in range mode where the ends of the calibration sweep (−100 and
+    100: the follower's stops) lie in arm units (``(2, 6)``, NaN for the gripper; None in
+    degrees)."""
     body = np.abs(np.concatenate([act[:, :5], obs[:, :5]]))
     beyond = bool(body.max(initial=0.0) > 100.0 + 1e-6)
     if mode == "range" and beyond:
@@ -128,7 +130,7 @@ def to_arm_units(
             "or degrees without"
         )
     if mode == "degrees" or (mode == "auto" and beyond):
-        return act, obs, False
+        return act, obs, False, None
     if mode == "auto" and calibration is None:
         warnings.append(
             "every body joint reads within ±100: taken as LeRobot's range mode (-100..100); "
@@ -147,7 +149,9 @@ def to_arm_units(
     act, obs = act.copy(), obs.copy()
     for values in (act, obs):
         values[:, :5] = values[:, :5] * scale + offset
-    return act, obs, calibration is None
+    ends = np.full((2, len(JOINT_NAMES)), np.nan)
+    ends[:, :5] = np.sort(np.stack([-100.0 * scale + offset, 100.0 * scale + offset]), axis=0)
+    return act, obs, calibration is None, ends
 
 
 RANGE_GUESS: dict[str, tuple[float, float]] = {

@@ -19,10 +19,13 @@ from typing import Any
 import numpy as np
 
 from ..model.arm import ArmLike, load_profile
+from ..model.index import arm_units
+from ..model.load import load_model
 from ..sim.simulation import Simulation
 from ..units import JOINT_NAMES
-from .calibration import from_log, to_log
+from .calibration import calibration_maps, from_log, to_log
 from .logs import ArmLog, Episode, read_log
+from .stops import stop_limits, with_stops
 from .windows import Window, still_frames, with_stall, worst_windows
 
 __all__ = ["CompareResult", "compare", "replay_episode"]
@@ -169,14 +172,19 @@ def compare(
     gripper 0–100). ``robot_id``: the follower's LeRobot id, whose calibration JSON is read
     from LeRobot's folder. A profile's ``[calibration]`` (fitted by ``so101sim fit`` on a
     range-mode recording without that JSON) maps such a recording's readings to angles;
-    a recording in exact degrees is taken as it is."""
+    a recording in exact degrees is taken as it is. A range-mode recording's body joints reach
+    the ends of its calibration sweep, past the model's limits where those are narrower
+    (:mod:`so101sim.fidelity.stops`)."""
     prof = load_profile(arm)
-    sim = Simulation(model, arm=prof)
+    base = load_model(model, arm=prof)
     data = log if isinstance(log, ArmLog) else read_log(
-        log, sim.units, episodes=episodes, calibration=calibration, units=units,
+        log, arm_units(base), episodes=episodes, calibration=calibration, units=units,
         robot_id=robot_id,
     )  # fmt: skip
     cal = prof.calibration if data.range_guess else {}
+    # the real arm's stops, where the recording tells them (stops.py): the replay reaches them
+    sim = Simulation(with_stops(base, *stop_limits(arm_units(base), data.stops,
+                                                   *calibration_maps(cal))))  # fmt: skip
     warnings = list(data.warnings)
     if prof.calibration and not data.range_guess:
         warnings.append(

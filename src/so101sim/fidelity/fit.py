@@ -66,6 +66,7 @@ from .fitparams import (
     with_values,
 )
 from .logs import ArmLog, Episode, read_log
+from .stops import stop_limits, widen_stops
 from .windows import stall_episodes
 
 log = logging.getLogger(__name__)
@@ -105,9 +106,11 @@ class ArmReplayer:
         *,
         model_path: str | Path | None = None,
         threads: int | None = None,
+        stops: np.ndarray | None = None,
     ) -> None:
         self.episodes = list(episodes)
         self.base = base
+        self.stops = stops  # the recording's stops (readings): the replayed arm reaches them
         self.model = replay_model(base, model_path)
         self.index = arm_index(self.model)
         self.units: ArmUnits = arm_units(self.model)
@@ -131,29 +134,32 @@ class ArmReplayer:
         6)``."""
         models = self._batch_models(len(servos))
         idx = self.index
-        for m, joints in zip(models, servos, strict=True):
-            for j, name in enumerate(JOINT_NAMES):
-                write_servo(m, int(idx.actuator[j]), int(idx.dof[j]), joints[name])
-        offsets = np.array([[s[n].offset for n in JOINT_NAMES] for s in servos])
         one = (np.ones(len(JOINT_NAMES)), np.zeros(len(JOINT_NAMES)))
         cals = list(calibrations) if calibrations is not None else [one] * len(servos)
+        limits = [stop_limits(self.units, self.stops, *c) for c in cals]
+        for m, joints, (lo, hi) in zip(models, servos, limits, strict=True):
+            for j, name in enumerate(JOINT_NAMES):
+                write_servo(m, int(idx.actuator[j]), int(idx.dof[j]), joints[name])
+            widen_stops(m, idx, self.units.to_radians(lo), self.units.to_radians(hi))
+        offsets = np.array([[s[n].offset for n in JOINT_NAMES] for s in servos])
         scale = np.array([c[0] for c in cals])[:, None, :]
         shift = np.array([c[1] for c in cals])[:, None, :]
+        lims = np.array(limits)[:, :, None, :]  # (n, 2, 1, 6): each entry's limits
         datas = [mujoco.MjData(self.model) for _ in range(self.threads)]
         out = []
         with BatchStepper(self.threads) as pool:
             for ep in self.episodes:
-                out.append(self._episode(pool, models, datas, ep, offsets, scale, shift))
+                out.append(self._episode(pool, models, datas, ep, offsets, scale, shift, lims))
         return np.concatenate(out, axis=1)
 
-    def _episode(self, pool, models, datas, ep: Episode, offsets, scale, shift) -> np.ndarray:
+    def _episode(self, pool, models, datas, ep: Episode, offsets, scale, shift, lims) -> np.ndarray:
         m = self.model
         idx, units = self.index, self.units
-        lo, hi = units.limits
+        lo, hi = lims[:, 0], lims[:, 1]
         n = len(models)
         meas = (ep.measured[None] - shift) / scale  # (n, frames, 6): the angles read
         cmd = units.to_radians(np.clip((ep.command[None] - shift) / scale, lo, hi))
-        start = units.to_radians(np.clip(meas[:, 0], lo, hi))
+        start = units.to_radians(np.clip(meas[:, 0], lo[:, 0], hi[:, 0]))
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
         states = np.empty((n, mujoco.mj_stateSize(m, spec)))
         d = datas[0]
@@ -248,6 +254,7 @@ def fit(
     replayer_units = arm_units(_plain_model(model))
     eps: list[Episode] = []
     guessed = False
+    stops: np.ndarray | None = None
     for item in logs:
         data = item if isinstance(item, ArmLog) else read_log(
             item, replayer_units, episodes=episodes, calibration=calibration, units=units,
@@ -255,12 +262,15 @@ def fit(
         )  # fmt: skip
         eps.extend(data.episodes)
         guessed = guessed or data.range_guess
+        if data.stops is not None:  # several recordings of one arm: the widest stops
+            stops = data.stops if stops is None else np.stack(
+                [np.fmin(stops[0], data.stops[0]), np.fmax(stops[1], data.stops[1])])  # fmt: skip
     if not eps:
         raise SettingError("no episodes to fit; expected at least one recorded episode")
     fit_eps, held_eps = _split(eps, holdout)
     with_cal = guessed if fit_calibration is None else fit_calibration
     replayed, used = stall_episodes(fit_eps)
-    rep = ArmReplayer(replayed, start, model_path=model, threads=threads)
+    rep = ArmReplayer(replayed, start, model_path=model, threads=threads, stops=stops)
     real = np.concatenate([e.measured for e in fit_eps])
 
     servo_names = [n for n in names if not (with_cal and n == "offset")]
@@ -353,7 +363,7 @@ def fit(
         stderr.setdefault(j, {})[n] = float(e)
     best = with_values(start, keys, sol.x * scale, se)
     fit_pred = run(rep, [best])[0]
-    held = _heldout(held_eps, best, start, model, threads, run)
+    held = _heldout(held_eps, best, start, model, threads, run, stops)
     return FitResult(
         profile=replace(
             best,
@@ -378,16 +388,18 @@ def fit(
     )
 
 
-def _heldout(held_eps, best, start, model, threads, run) -> tuple:
+def _heldout(held_eps, best, start, model, threads, run, stops) -> tuple:
     """On the held-out episodes: the fitted profile's, the start's, the default profile's and
     the bare commands' errors, and the frames of a blocked gripper (Nones when none)."""
     if not held_eps:
         return None, None, None, None, 0
     hreal = np.concatenate([e.measured for e in held_eps])
     replayed, hused = stall_episodes(held_eps)
-    hp = run(ArmReplayer(replayed, start, model_path=model, threads=threads), [best, start])
+    hp = run(ArmReplayer(replayed, start, model_path=model, threads=threads, stops=stops),
+             [best, start])  # fmt: skip
     default = load_profile(PROFILE_DEFAULT)
-    dp = run(ArmReplayer(replayed, default, model_path=model, threads=threads), [default])[0]
+    dp = run(ArmReplayer(replayed, default, model_path=model, threads=threads, stops=stops),
+             [default])[0]  # fmt: skip
     hcmd = np.concatenate([e.command for e in held_eps])
     return (mae(hp[0], hreal, hused), mae(hp[1], hreal, hused), mae(dp, hreal, hused),
             mae(hcmd, hreal, hused), int((~hused[:, -1]).sum()))  # fmt: skip

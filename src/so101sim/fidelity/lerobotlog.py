@@ -205,7 +205,7 @@ def read_lerobot(root: Path, episodes: list[int] | None, calibration, mode: str)
     warnings: list[str] = []
     if mode == "auto" and calibration is None and _written_by_so101sim(root):
         mode = "degrees"  # `so101sim dataset` writes the body joints in degrees
-    act, obs, guessed = to_arm_units(act, obs, mode, calibration, warnings)
+    act, obs, guessed, stops = to_arm_units(act, obs, mode, calibration, warnings)
     order = np.lexsort((fr, ep))  # by episode, then frame: each episode one slice
     found, first = np.unique(ep[order], return_index=True)
     bounds = dict(zip(found.tolist(), zip(first, [*first[1:], len(order)], strict=True),
@@ -232,7 +232,7 @@ def read_lerobot(root: Path, episodes: list[int] | None, calibration, mode: str)
         raise LogError(f"{str(root)!r}: no episode with two frames or more among {chosen}")
     kind = "lerobot-v2.1" if str(info.get("codebase_version", "v3.0")).startswith("v2") else (
         "lerobot-v3.0")  # fmt: skip
-    return ArmLog(fps, out, str(root), kind, warnings, range_guess=guessed)
+    return ArmLog(fps, out, str(root), kind, warnings, range_guess=guessed, stops=stops)
 
 
 def _check_stats(root: Path, parts: dict, total: int) -> None:

@@ -51,6 +51,10 @@ class ArmLog:
     range_guess: bool = False
     """True when range-mode readings were read as a typical arm's (no LeRobot calibration
     JSON): each body joint's true offset and scale are unknown."""
+    stops: np.ndarray | None = None
+    """Range mode: ``(2, 6)``, each joint's lower and upper reading (arm units) at the ends of
+    the follower's calibration sweep, where LeRobot's −100 and 100 lie: its mechanical stops
+    (NaN for the gripper). None when the recording does not tell them (degrees, CSV)."""
 
     @property
     def frames(self) -> int:
