@@ -4,8 +4,10 @@ without lerobot) or so101sim CSV logs."""
 
 from __future__ import annotations
 
+import copy
 import json
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +15,7 @@ import numpy as np
 from so101sim.fidelity.compare import replay_episode
 from so101sim.fidelity.logs import Episode
 from so101sim.model.arm import ArmProfile, load_profile
+from so101sim.model.load import load_model
 from so101sim.sim import Simulation
 from so101sim.units import JOINT_NAMES
 
@@ -41,15 +44,42 @@ def commands(seed: int, seconds: float = 3.0, fps: float = FPS) -> tuple[np.ndar
     return t, cmd
 
 
-def record(arm: ArmProfile, seeds: list[int], seconds: float = 3.0) -> list[Episode]:
-    """Episodes of ``arm`` following :func:`commands` for each seed, from the first command."""
-    sim = Simulation(arm=arm)
+def record(
+    arm: ArmProfile, seeds: list[int], seconds: float = 3.0, load_friction: float = 0.0
+) -> list[Episode]:
+    """Episodes of ``arm`` following :func:`commands` for each seed, from the first command.
+    ``load_friction`` k: a gearbox whose Coulomb friction grows with the load (Rhoban's BAM
+    M3-M6), each joint's friction ``frictionloss + k * |servo torque|`` at every step, which
+    no so101sim profile models (the hidden arm is not one the fit can be exactly)."""
+    if not load_friction:
+        sim = Simulation(arm=arm)
+        replay = replay_episode
+    else:
+        sim = Simulation(copy.copy(load_model(arm=arm)))
+        replay = partial(_replay_loaded, k=load_friction, base=sim.model.dof_frictionloss.copy())
     out = []
     for i, seed in enumerate(seeds):
         t, cmd = commands(seed, seconds)
-        meas = replay_episode(sim, Episode(i, t, cmd, np.tile(cmd[0], (len(t), 1))))
+        meas = replay(sim, Episode(i, t, cmd, np.tile(cmd[0], (len(t), 1))))
         out.append(Episode(i, t, cmd, meas))
     return out
+
+
+def _replay_loaded(sim: Simulation, episode: Episode, k: float, base: np.ndarray) -> np.ndarray:
+    """:func:`replay_episode` one physics step at a time, the friction set from the load."""
+    idx, m, d = sim.index, sim.model, sim.data
+    step = sim.step
+
+    def one_at_a_time(n: int, trace: bool = False) -> None:
+        for _ in range(n):  # the coming step's friction from the servos' last torque
+            m.dof_frictionloss[idx.dof] = base[idx.dof] + k * np.abs(d.actuator_force[idx.actuator])
+            step(1, trace=trace)
+
+    sim.step = one_at_a_time
+    try:
+        return replay_episode(sim, episode)
+    finally:
+        del sim.step
 
 
 def write_lerobot(root: Path, episodes: list[Episode], *, version: str = "v3.0",
