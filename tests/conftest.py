@@ -38,6 +38,7 @@ HEAVY_FIRST = (
     "studio/test_studio_page.py",
     "fidelity/test_fidelity_calibration.py",
     "envs/test_distributed.py",
+    "fidelity/test_fidelity_load_friction.py",
     "studio/test_studio_compare.py",
     "viewer/test_viewer.py",
     "fidelity/test_fidelity_fit.py",
