@@ -102,6 +102,10 @@ def test_compare_replays_a_folded_arm_against_its_stops(tmp_path, folded):
     sim = res.traces[0]["sim_pose"]
     assert sim[rest, LIFT].min() < -103.0
     assert res.joints["shoulder_lift"].mae < 0.3
+    # the replay's limits go with the result (compare --web poses its arms with them), and the
+    # shared model keeps its own
+    assert res.limits is not None and res.limits[0][LIFT] == pytest.approx(_guess_ends()[0, LIFT])
+    assert arm_units(load_model(arm=arm)).limits[0][LIFT] == pytest.approx(-100.0)
     # in degrees the recording says nothing of the stops: the model's limits hold
     deg = compare(write_lerobot(tmp_path / "deg", [ep]), arm=arm, units="degrees")
     assert deg.joints["shoulder_lift"].mae > 1.5

@@ -192,11 +192,14 @@ def _serve_compare(result, args: argparse.Namespace) -> int:
     """``compare --web``: the replay in the studio (the sim's arm, the real arm's ghost) until
     Ctrl-C (or SIGTERM, SIGHUP); the server stopped on the way out."""
     # the studio's modules (viser: the optional web extra) only for --web
+    from ..fidelity.stops import with_stops
     from ..model import load_model
     from ..studio.compare import CompareStudio, Window
     from .studio import _UntilSignal, announce
 
     model = load_model(args.model, arm=args.arm)
+    if result.limits is not None:  # the arms drawn where the replay put them, past the CAD's
+        model = with_stops(model, *result.limits)
     windows = [
         Window(w.episode, w.t0, w.t1, f"episode {w.episode}, {w.t0:.1f}-{w.t1:.1f} s: "
                f"{w.joint} ({w.mae:.1f} deg body mae)", w.joint)

@@ -51,7 +51,9 @@ class CompareResult:
     ``keep_traces``): per compared episode, ``episode`` (its index), ``t`` (s), ``real``,
     ``sim``, ``command`` (readings, ``(n, 6)``), ``blocked`` (the real gripper blocked), and
     ``real_pose``/``sim_pose``: the same poses as angles (what poses an arm: they differ from
-    the readings only under a profile's ``[calibration]``)."""
+    the readings only under a profile's ``[calibration]``). ``limits``: the replayed arm's
+    joint limits (arm units, lower and upper), widened to the recording's stops
+    (:mod:`so101sim.fidelity.stops`): what poses the studio's arms (``compare --web``)."""
 
     frames: int
     episodes: list[int]
@@ -65,6 +67,7 @@ class CompareResult:
     moves: dict[str, float] = field(default_factory=dict)
     worst: list[Window] = field(default_factory=list)
     gripper_blocked_frames: int = 0
+    limits: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
 
     def to_json(self) -> dict[str, Any]:
         """The ``--json`` object: ``frames``, ``episodes``, ``joints`` {mae, rms, max, lag_s
@@ -176,15 +179,15 @@ def compare(
     the ends of its calibration sweep, past the model's limits where those are narrower
     (:mod:`so101sim.fidelity.stops`)."""
     prof = load_profile(arm)
-    base = load_model(model, arm=prof)
+    loaded = load_model(model, arm=prof)
     data = log if isinstance(log, ArmLog) else read_log(
-        log, arm_units(base), episodes=episodes, calibration=calibration, units=units,
+        log, arm_units(loaded), episodes=episodes, calibration=calibration, units=units,
         robot_id=robot_id,
     )  # fmt: skip
     cal = prof.calibration if data.range_guess else {}
     # the real arm's stops, where the recording tells them (stops.py): the replay reaches them
-    sim = Simulation(with_stops(base, *stop_limits(arm_units(base), data.stops,
-                                                   *calibration_maps(cal))))  # fmt: skip
+    limits = stop_limits(arm_units(loaded), data.stops, *calibration_maps(cal))
+    sim = Simulation(with_stops(loaded, *limits))
     warnings = list(data.warnings)
     if prof.calibration and not data.range_guess:
         warnings.append(
@@ -242,4 +245,5 @@ def compare(
         warnings=warnings, traces=traces,
         holds=_split_mae(err, st & ok), moves=_split_mae(err, ~st & ok),
         worst=worst_windows(per_ep, JOINT_NAMES), gripper_blocked_frames=blocked,
+        limits=limits,
     )  # fmt: skip
