@@ -59,3 +59,24 @@ def test_fit_finds_the_calibration_and_predicts_a_held_out_episode(tmp_path):
     plain = compare(root, arm="sts3215", episodes=[3])
     sim = np.mean([with_cal.joints[n].mae for n in JOINT_NAMES[:5]])
     assert sim < 0.6 and sim < np.mean([plain.joints[n].mae for n in JOINT_NAMES[:5]])
+
+
+def test_fit_ignores_a_start_profiles_calibration_on_exact_degrees_as_compare_does(tmp_path):
+    """A recording in degrees is taken as given: a start profile's ``[calibration]`` (fitted on
+    another, range-mode recording) is used by neither ``compare`` nor ``fit``, so the start's
+    held-out error ``fit`` prints is the one ``compare`` gives with that profile."""
+    from dataclasses import replace
+
+    root = write_lerobot(tmp_path / "ds", record(true_arm(), [21, 22], 3.0))
+    start = replace(load_profile("sts3215"),
+                    calibration={"shoulder_lift": {"scale": 1.0, "offset": 6.0}})  # fmt: skip
+    path = tmp_path / "start.toml"
+    path.write_text(profile_toml(start))
+    res = fit([root], arm=path, names=("damping",), joints=("elbow_flex",), holdout=[1],
+              max_evaluations=1, units="degrees")  # fmt: skip
+    cmp = compare(root, arm=path, episodes=[1], units="degrees")
+    assert any("[calibration] is not used" in w for w in cmp.warnings)
+    assert res.start_heldout_error is not None
+    for name in JOINT_NAMES[:5]:  # the same replay: not 6° off on shoulder_lift
+        assert res.start_heldout_error[name] == pytest.approx(cmp.joints[name].mae, abs=0.05)
+    assert res.start_heldout_error["shoulder_lift"] < 3.0

@@ -180,7 +180,9 @@ def fit(
 
     def run(reps: ArmReplayer, profs: list[ArmProfile]) -> np.ndarray:
         servos = [{n: p.joint(n) for n in JOINT_NAMES} for p in profs]
-        return reps.replay(servos, [calibration_maps(p.calibration) for p in profs])
+        # a profile's [calibration] where compare uses it: degrees that are a guess (or fitted)
+        cals = [calibration_maps(p.calibration if guessed or with_cal else {}) for p in profs]
+        return reps.replay(servos, cals)
 
     def residuals_batch(zs: list[np.ndarray]) -> list[np.ndarray]:
         preds = run(rep, [profile_of(z) for z in zs])
