@@ -119,3 +119,30 @@ def test_the_fit_replays_against_the_same_stops(folded):
     rest = ep.measured[:, LIFT] < -100.5
     assert np.mean(np.abs(with_stops_[:, LIFT] - ep.measured[:, LIFT])) < 0.3
     assert without[rest, LIFT].min() > -101.0  # held at the model's limit
+
+
+def test_a_reversed_motor_drive_mode_1_gives_its_stops_lowest_first(tmp_path):
+    """LeRobot's ``drive_mode`` 1 (a motor mounted the other way round) reads -100 at the
+    angle's upper end: the stops are still (lower, upper) angles, and widen the model's range."""
+    import json
+
+    from so101sim.fidelity.calibration import calibration_of, to_arm_units
+
+    cal = {n: {"id": i + 1, "drive_mode": 0, "homing_offset": 0, "range_min": 700,
+               "range_max": 3400} for i, n in enumerate(JOINT_NAMES)}  # fmt: skip
+    cal["shoulder_lift"]["drive_mode"] = 1
+    path = tmp_path / "follower.json"
+    path.write_text(json.dumps(cal))
+    scale, offset = calibration_of(path)
+    assert scale[LIFT] < 0 < scale[0]
+    values = np.zeros((3, len(JOINT_NAMES)))
+    _, _, guessed, ends = to_arm_units(values, values, "range", path, [])
+    assert not guessed and ends is not None
+    assert (ends[0, :5] < ends[1, :5]).all()
+    sweep = (3400 - 700) / 4095 * 360  # the swept angle, either way round
+    np.testing.assert_allclose(ends[1, :5] - ends[0, :5], sweep, rtol=1e-3)
+    assert ends[0, LIFT] == pytest.approx(100.0 * scale[LIFT] + offset[LIFT])
+    lo, hi = stop_limits(default_units(), ends)
+    units_lo, units_hi = default_units().limits
+    assert lo[LIFT] == pytest.approx(min(ends[0, LIFT], units_lo[LIFT]))
+    assert hi[LIFT] == pytest.approx(max(ends[1, LIFT], units_hi[LIFT]))
