@@ -67,13 +67,13 @@ def test_fit_ignores_a_start_profiles_calibration_on_exact_degrees_as_compare_do
     held-out error ``fit`` prints is the one ``compare`` gives with that profile."""
     from dataclasses import replace
 
-    root = write_lerobot(tmp_path / "ds", record(true_arm(), [21, 22], 3.0))
+    root = write_lerobot(tmp_path / "ds", record(true_arm(), [21, 22], 2.0))
     start = replace(load_profile("sts3215"),
                     calibration={"shoulder_lift": {"scale": 1.0, "offset": 6.0}})  # fmt: skip
     path = tmp_path / "start.toml"
     path.write_text(profile_toml(start))
     res = fit([root], arm=path, names=("damping",), joints=("elbow_flex",), holdout=[1],
-              max_evaluations=1, units="degrees")  # fmt: skip
+              max_evaluations=1, fit_delay=False, units="degrees")  # fmt: skip
     cmp = compare(root, arm=path, episodes=[1], units="degrees")
     assert any("[calibration] is not used" in w for w in cmp.warnings)
     assert res.start_heldout_error is not None
