@@ -25,6 +25,7 @@ from .logdata import LogError, read_small
 
 __all__ = [
     "RANGE_GUESS",
+    "applied_calibration",
     "calibration_maps",
     "from_log",
     "lerobot_calibration_dir",
@@ -33,6 +34,15 @@ __all__ = [
     "to_arm_units",
     "to_log",
 ]
+
+
+def applied_calibration(
+    cal: dict[str, dict[str, float]], degrees_guessed: bool
+) -> dict[str, dict[str, float]]:
+    """A profile's ``[calibration]`` where it applies: to readings whose degrees are a guess
+    (range mode without LeRobot's calibration JSON), or are being fitted; exact degrees (a
+    calibration JSON, or a degrees recording) are taken as given (``{}``)."""
+    return cal if degrees_guessed else {}
 
 
 def calibration_maps(cal: dict[str, dict[str, float]]) -> tuple[np.ndarray, np.ndarray]:

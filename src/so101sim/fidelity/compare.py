@@ -23,7 +23,7 @@ from ..model.index import arm_units
 from ..model.load import load_model
 from ..sim.simulation import Simulation
 from ..units import JOINT_NAMES
-from .calibration import calibration_maps, from_log, to_log
+from .calibration import applied_calibration, calibration_maps, from_log, to_log
 from .logs import ArmLog, Episode, read_log
 from .stops import stop_limits, with_stops
 from .windows import Window, still_frames, with_stall, worst_windows
@@ -184,7 +184,7 @@ def compare(
         log, arm_units(loaded), episodes=episodes, calibration=calibration, units=units,
         robot_id=robot_id,
     )  # fmt: skip
-    cal = prof.calibration if data.range_guess else {}
+    cal = applied_calibration(prof.calibration, data.range_guess)
     # the real arm's stops, where the recording tells them (stops.py): the replay reaches them
     limits = stop_limits(arm_units(loaded), data.stops, *calibration_maps(cal))
     sim = Simulation(with_stops(loaded, *limits))

@@ -37,7 +37,7 @@ from ..model.arm import PROFILE_DEFAULT, ArmLike, ArmProfile, load_profile
 from ..model.load import arm_units
 from ..units import JOINT_NAMES
 from ..validation import check_count
-from .calibration import calibration_maps
+from .calibration import applied_calibration, calibration_maps
 from .deps import need
 from .fitparams import (
     BOUNDS,
@@ -181,7 +181,8 @@ def fit(
     def run(reps: ArmReplayer, profs: list[ArmProfile]) -> np.ndarray:
         servos = [{n: p.joint(n) for n in JOINT_NAMES} for p in profs]
         # a profile's [calibration] where compare uses it: degrees that are a guess (or fitted)
-        cals = [calibration_maps(p.calibration if guessed or with_cal else {}) for p in profs]
+        cals = [calibration_maps(applied_calibration(p.calibration, guessed or with_cal))
+                for p in profs]  # fmt: skip
         return reps.replay(servos, cals)
 
     def residuals_batch(zs: list[np.ndarray]) -> list[np.ndarray]:
