@@ -89,6 +89,15 @@ def prepare_for_rendering(loader: Callable[[str], bool] = _dlopen) -> str | None
     return ensure_offscreen_backend(loader)
 
 
+def one_rasterizer_thread() -> None:
+    """A worker process's start where several workers share the cores: one thread for Mesa's
+    CPU rasteriser (``LP_NUM_THREADS=1``, unless already set; Mesa reads it when the first GL
+    context is made). More threads only make the workers wait on each other. Defined here, in
+    a module that imports nothing heavy, so that a process pool started with it as its
+    initializer imports nothing else to run it."""
+    os.environ.setdefault("LP_NUM_THREADS", "1")
+
+
 def skip_opengl() -> bool:
     """For a command that draws nothing (``so101sim run --headless`` without ``--record``):
     tell MuJoCo not to load an OpenGL backend at all (``MUJOCO_GL=disable``; its default would

@@ -1,18 +1,19 @@
 """The episodes of ``so101sim dataset``, simulated on worker processes (or Ray tasks) and
 handed back in seed order.
 
-Each worker runs so101sim's :func:`~so101sim.envs.run.expert_frames` (plain arguments, so it
-imports nothing of LeRobot or of this plugin) and sends the episode's arrays back; at most
-``2 × workers`` episodes are in flight (the frames held in memory stay bounded). A worker
-starts with one thread for Mesa's CPU rasteriser (``LP_NUM_THREADS``): the workers already
-share the cores, and more threads only make them wait on each other. (Not OpenMP's thread
-count: NumPy's linear algebra rounds differently with another count, which changes the
-expert's plans, and the same seed must give the same episode whatever the worker count.)
+Each worker runs so101sim's :func:`~so101sim.envs.run.expert_frames` (plain arguments) and
+sends the episode's arrays back; at most ``2 × workers`` episodes are in flight (the frames
+held in memory stay bounded). A worker starts with one thread for Mesa's CPU rasteriser
+(:func:`so101sim.gl.one_rasterizer_thread`): the workers already share the cores, and more
+threads only make them wait on each other. (Not OpenMP's thread count: NumPy's linear algebra
+rounds differently with another count, which changes the expert's plans, and the same seed
+must give the same episode whatever the worker count.) Everything a worker is handed to run
+lives in so101sim's core, so a worker never imports LeRobot, torch or this plugin (importing
+this plugin's package imports LeRobot and torch: several CPU-seconds per worker).
 """
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
@@ -22,17 +23,20 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from so101sim.gl import one_rasterizer_thread
+
 if TYPE_CHECKING:
     from .dataset import DatasetSettings
 
-WORKER_THREADS = {"LP_NUM_THREADS": "1"}
-"""Set in each worker before it imports MuJoCo or starts OpenGL (unless already set)."""
+worker_init = one_rasterizer_thread
+"""A worker's start: one llvmpipe thread (see the module's text)."""
 
 
-def worker_init() -> None:
-    """A worker's start: one llvmpipe thread (see the module's text)."""
-    for key, value in WORKER_THREADS.items():
-        os.environ.setdefault(key, value)
+def worker_pool(workers: int) -> ProcessPoolExecutor:
+    """The process pool the episodes run on: ``workers`` spawned processes, each started by
+    :data:`worker_init` (from so101sim's core: a worker imports neither LeRobot nor torch)."""
+    ctx = get_context("spawn")  # MuJoCo's GL contexts and torch do not survive a fork
+    return ProcessPoolExecutor(workers, mp_context=ctx, initializer=worker_init)
 
 
 @dataclass(frozen=True)
@@ -111,10 +115,9 @@ def _frames_kwargs(settings: DatasetSettings) -> dict[str, Any]:
 
 
 def episodes(settings: DatasetSettings, seeds: list[int]) -> Iterator[Episode]:
-    """The episodes of ``seeds``, in that order, simulated by ``settings.workers`` workers.
-    The workers run so101sim's :func:`~so101sim.envs.run.expert_frames` (plain arguments, so
-    they import nothing of LeRobot or of this plugin); this process turns each into an
-    :class:`Episode`."""
+    """The episodes of ``seeds``, in that order, simulated by ``settings.workers`` workers
+    (:func:`worker_pool`). The workers run so101sim's :func:`~so101sim.envs.run.expert_frames`
+    (plain arguments); this process turns each into an :class:`Episode`."""
     from so101sim.envs import expert_frames
 
     kwargs = _frames_kwargs(settings)
@@ -140,8 +143,7 @@ def episodes(settings: DatasetSettings, seeds: list[int]) -> Iterator[Episode]:
             yield simulate_episode(settings, s)
         return
     ahead = 2 * settings.workers  # episodes in flight: bounds the frames held in memory
-    ctx = get_context("spawn")  # MuJoCo's GL contexts and torch do not survive a fork
-    with ProcessPoolExecutor(settings.workers, mp_context=ctx, initializer=worker_init) as pool:
+    with worker_pool(settings.workers) as pool:
         pending: list[Any] = []
         todo = iter(seeds)
         try:
@@ -159,4 +161,4 @@ def episodes(settings: DatasetSettings, seeds: list[int]) -> Iterator[Episode]:
                 fut.cancel()
 
 
-__all__ = ["Episode", "episodes", "jsonable", "simulate_episode", "worker_init"]
+__all__ = ["Episode", "episodes", "jsonable", "simulate_episode", "worker_init", "worker_pool"]

@@ -6,6 +6,7 @@ evaluated (``so101sim eval``); the same seeds give the same episodes whatever th
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -245,3 +246,16 @@ def test_a_slow_video_encoder_loses_no_frame(tmp_path, monkeypatch, caplog):
         (video,) = (root / "videos" / f"observation.images.{cam}").rglob("*.mp4")
         with av.open(str(video)) as container:
             assert sum(1 for _ in container.decode(video=0)) == report.frames, cam
+
+
+def test_a_dataset_worker_imports_neither_lerobot_nor_torch():
+    """The pool `so101sim dataset` simulates on: its workers run so101sim's core only (this
+    plugin's package imports LeRobot and torch, seconds of CPU per worker)."""
+    from lerobot_robot_so101sim.episodes import worker_pool
+    from worker_probe import loaded
+
+    heavy = ["lerobot", "lerobot_robot_so101sim", "torch"]
+    with worker_pool(1) as pool:
+        seen = pool.submit(loaded, heavy).result(timeout=600)
+    one_thread = os.environ.get("LP_NUM_THREADS", "1")  # the worker keeps one set here
+    assert seen == {"imported": [], "LP_NUM_THREADS": one_thread}
