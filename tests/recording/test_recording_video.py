@@ -196,8 +196,17 @@ def test_ctrl_c_while_a_frame_is_piped_to_ffmpeg_leaves_a_playable_video(tmp_pat
     path = tmp_path / "cut.mp4"
     settings = rec.VideoSettings(width=640, height=480, fps=30, quality="draft", caption=False)
     pause = PauseEncoder()
-    with pytest.raises(KeyboardInterrupt), rec.Recorder(sim, video=path, settings=settings) as r:
-        run_motion(sim.model, sim.data, [Hold(30.0)], observers=[*r.observers, pause])
+    # Ctrl-C as a fresh Python takes it, whatever an earlier test in this worker process left
+    # (the CLI's in-process runs install their own handlers for SIGINT)
+    handler = signal.signal(signal.SIGINT, signal.default_int_handler)
+    mask = signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    try:
+        recorder = rec.Recorder(sim, video=path, settings=settings)
+        with pytest.raises(KeyboardInterrupt), recorder as r:
+            run_motion(sim.model, sim.data, [Hold(30.0)], observers=[*r.observers, pause])
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        signal.signal(signal.SIGINT, handler)
     assert pause.pids  # the encoder was found and paused
     frames, _ = read_video(path)
     assert len(frames) == r.video.frames > 6  # every frame sent is in the file
