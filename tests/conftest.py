@@ -79,8 +79,13 @@ def xvfb():
     if shutil.which("Xvfb") is None:
         pytest.skip("Xvfb is not installed (apt-get install -y xvfb)")
     read_fd, write_fd = os.pipe()
-    proc = subprocess.Popen(  # Xvfb picks a free display number and writes it to write_fd
-        ["Xvfb", "-displayfd", str(write_fd), "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
+    # Xvfb picks a free display number and writes it to write_fd. -noreset: by default an X
+    # server resets when its last client leaves and drops the connections that come meanwhile
+    # ("X11: Failed to open display"): between two `xdotool search` polls a viewer that is still
+    # starting would be one of them, now and then, on a busy machine.
+    screen = ("-screen", "0", "1024x768x24")
+    proc = subprocess.Popen(
+        ["Xvfb", "-displayfd", str(write_fd), *screen, "-nolisten", "tcp", "-noreset"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
         pass_fds=(write_fd,),
