@@ -16,11 +16,13 @@ draws frames back-to-back, which on a CPU renderer keeps a core or more busy.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import logging
 import os
 import sys
 import threading
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any, Literal, get_args
@@ -339,6 +341,56 @@ def open_viewer(
         for t in ui_threads:
             t.join(timeout=10.0)
         log.debug("viewer closed")
+
+
+# ---------------------------------------------------------------------------- a script's own viewer
+_EXIT_WAIT_S = 10.0
+"""At the interpreter's exit, how long :func:`close_at_exit` waits for the windows to close."""
+
+_scripts_viewers: list[Any] = []  # the handles close_at_exit was given, closed at exit
+
+
+def _viewer_threads() -> list[threading.Thread]:
+    """The threads MuJoCo's ``launch_passive`` draws the windows on (named after their target,
+    ``Thread-N (_launch_internal)``, by Python's ``threading``)."""
+    return [t for t in threading.enumerate() if t.name.endswith("(_launch_internal)")]
+
+
+def _close_scripts_viewers() -> None:
+    """Close the viewers :func:`close_at_exit` was given and wait (at most
+    :data:`_EXIT_WAIT_S`) until their windows are down."""
+    for handle in _scripts_viewers:
+        with contextlib.suppress(Exception):  # already closed, or its window failed
+            handle.close()
+    _scripts_viewers.clear()
+    deadline = time.monotonic() + _EXIT_WAIT_S
+    for t in _viewer_threads():
+        if t is not threading.current_thread():
+            t.join(timeout=max(0.0, deadline - time.monotonic()))
+
+
+def close_at_exit(viewer: Any) -> None:
+    """Make a script's own passive viewer (``mujoco.viewer.launch_passive``) end cleanly when
+    the script ends.
+
+    A script that leaves ``with mujoco.viewer.launch_passive(m, d) as viewer:`` and ends (the
+    lab handout's pattern) ends while the viewer's daemon thread is still taking its window
+    down, and MuJoCo's exit handler terminates GLFW under it: the process segfaults after the
+    script's last line (exit 139; MuJoCo issue 790; every time on Mesa's software OpenGL
+    here). This registers an exit handler that closes the viewer and waits up to
+    :data:`_EXIT_WAIT_S` for its window, and puts it after every handler registered so far, so
+    it runs before GLFW is terminated (exit handlers run last registered first; each viewer
+    opened registers GLFW's again, so call this for each). Anything but a MuJoCo viewer handle
+    (``None``, a recorder standing in for it) is left alone. The lab helpers call it with the
+    viewer they are given.
+    """
+    handle_type = getattr(sys.modules.get("mujoco.viewer"), "Handle", None)
+    if handle_type is None or not isinstance(viewer, handle_type):
+        return
+    if not any(v is viewer for v in _scripts_viewers):
+        _scripts_viewers.append(viewer)
+    atexit.unregister(_close_scripts_viewers)
+    atexit.register(_close_scripts_viewers)
 
 
 def view(m: mujoco.MjModel, d: mujoco.MjData) -> None:
