@@ -294,6 +294,22 @@ def test_a_video_given_as_the_motion_file_says_to_use_record(command, tmp_path, 
             assert err.endswith(f"to write a plot use {flag.replace('record', 'plot')} {path}")
 
 
+@pytest.mark.parametrize("command", ["run", "check"])
+def test_a_python_script_given_as_the_motion_file_says_which_commands_take_one(
+    command, tmp_path, capsys
+):
+    script = tmp_path / "my_lab.py"
+    script.write_text("import mujoco\nimport mujoco.viewer\n")
+    assert main([command, str(script), *(["--headless"] if command == "run" else [])]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert f"{script}:1: not valid TOML" in err
+    assert err.endswith("`so101sim grade LOG.csv` judges the run against the lab's spec")
+    assert "`so101sim record SCRIPT --log LOG.csv` runs your own script" in err
+    assert main([command, str(tmp_path / "missing.py")]) == 2  # not there: no such hint
+    assert "so101sim record SCRIPT" not in capsys.readouterr().err
+
+
 def test_a_binary_file_is_not_a_motion_file(tmp_path, capsys):
     blob = tmp_path / "motion.bin"
     blob.write_bytes(bytes(range(256)))

@@ -294,3 +294,29 @@ def test_the_summary_says_per_check_how_many_failed_the_worst_and_what_to_change
     checks = {c["check"]: c for c in report.to_dict()["checks"]}
     assert checks["effort"]["failed"] == counts.get("Effort", 0)
     assert "advice" in checks["effort"] or counts.get("Effort", 0) == 0
+
+
+def test_the_limit_advice_names_the_joint_its_limit_and_that_a_steps_start_pose_counts():
+    # the lab's rest pose (shoulder_lift 2° from -100°) is where every step 1 begins: the advice
+    # must not send the user to a step's target when the start is what comes near the limit
+    from types import SimpleNamespace
+
+    from so101sim.preflight.judge import LimitFinding, Thresholds
+    from so101sim.preflight.report import advice
+
+    found = [
+        LimitFinding(step=s, phase=p, joint="shoulder_lift", margin=0.81, side="lower",
+                     limit=-100.0)
+        for s, p in ((1, "to_reach"), (3, "return"))
+    ]  # fmt: skip
+    worst = SimpleNamespace(
+        outcome=SimpleNamespace(failures=found),
+        variant=SimpleNamespace(zero_offset_deg=np.array([0.3, -1.4, 1.19])),
+    )
+    text = advice("limit margin", worst, Thresholds())
+    assert text.startswith(
+        "keep shoulder_lift from its lower limit (-100.00°) at least 0.19° further away in the "
+        "poses that step 1 (to_reach), step 3 (return) start from or move to (the motion's start "
+        "pose counts"
+    )
+    assert "zero offset moves the arm by up to 1.40°" in text

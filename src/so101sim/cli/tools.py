@@ -36,10 +36,19 @@ OUTPUT_OPTIONS = {
 @contextlib.contextmanager
 def output_hint(motion: str | None, command: str = "") -> Iterator[None]:
     """Add to a motion file that cannot be read, named like an output (``run lab.mp4``, the
-    user forgot ``--record``), which option (of ``command``, if not this one) writes it."""
+    user forgot ``--record``), which option (of ``command``, if not this one) writes it; to a
+    Python script given as one (``check my_lab.py``), which commands take a script."""
     try:
         yield
     except MotionFileError as exc:
+        if Path(motion or "").suffix.lower() == ".py" and Path(motion or "").is_file():
+            raise MotionFileError(
+                exc.path,
+                exc.line,
+                f"{exc.reason}; a Python script is not a motion file (TOML: "
+                "docs/motions.md): `so101sim record SCRIPT --log LOG.csv` runs your own script "
+                "headless and `so101sim grade LOG.csv` judges the run against the lab's spec",
+            ) from None
         option = OUTPUT_OPTIONS.get(Path(motion or "").suffix.lower())
         if option is None or exc.line != 0:
             raise

@@ -125,10 +125,14 @@ def advice(check: str, worst: Worst | None, th: Thresholds) -> str:
     if check == "limit margin":
         need = max((th.limit_margin - f.margin for f in found), default=th.limit_margin)
         offset = float(np.abs(worst.variant.zero_offset_deg).max()) if worst else 0.0
+        joints = ", ".join(
+            dict.fromkeys(f"{f.joint} from its {f.side} limit ({f.limit:.2f}°)" for f in found)
+        )
         return (
-            f"keep the targets of {where} at least {need:.2f}° further inside the joint "
-            f"limits (a variant's zero offset moves the arm by up to {offset:.2f}°), or "
-            "calibrate the arm so its zero offsets are smaller"
+            f"keep {joints or 'the joints'} at least {need:.2f}° further away in the poses that "
+            f"{where} start from or move to (the motion's start pose counts: a step begins "
+            f"where the one before ended; a variant's zero offset moves the arm by up to "
+            f"{offset:.2f}°), or calibrate the arm so its zero offsets are smaller"
         )
     if check == "effort":
         payload = f" (the worst variant carries {worst.variant.payload_kg:.3f} kg)" if worst else ""
