@@ -226,7 +226,8 @@ def test_a_handout_script_with_its_own_viewer_ends_without_a_segfault(xvfb):
 def test_close_at_exit_leaves_anything_but_a_mujoco_viewer_alone():
     import mujoco.viewer  # noqa: F401  (imported: close_at_exit checks against its Handle)
 
-    from so101sim.viewer import close_at_exit, passive
+    from so101sim.sim import observers
+    from so101sim.viewer import close_at_exit
 
     class Recorder:  # a stand-in for the viewer (so101sim record's): not closed at exit
         closed = False
@@ -238,13 +239,13 @@ def test_close_at_exit_leaves_anything_but_a_mujoco_viewer_alone():
             return True
 
     recorder = Recorder()
-    kept = list(passive._scripts_viewers)
+    kept = list(observers._scripts_viewers)
     for thing in (None, recorder, object()):
         close_at_exit(thing)
-    assert passive._scripts_viewers == kept and recorder not in kept
-    passive._scripts_viewers.append(recorder)  # as a kept handle: closed by the exit handler
-    passive._close_scripts_viewers()
-    assert recorder.closed and passive._scripts_viewers == []
+    assert observers._scripts_viewers == kept and recorder not in kept
+    observers._scripts_viewers.append(recorder)  # as a kept handle: closed by the exit handler
+    observers._close_scripts_viewers()
+    assert recorder.closed and observers._scripts_viewers == []
 
 
 @pytest.mark.slow

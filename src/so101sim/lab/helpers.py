@@ -26,8 +26,8 @@ What differs from the handout, and why:
   targets to the joint limits instead of refusing them.
 
 * **The end of the script.** Given MuJoCo's own passive viewer, the helpers make sure the
-  script ends cleanly after its ``with launch_passive(...)`` block
-  (:func:`so101sim.viewer.close_at_exit`): without it the process often segfaulted on the way
+  script ends cleanly after its ``with launch_passive(...)`` block (the simulation calls
+  :func:`so101sim.viewer.close_at_exit`): without it the process often segfaulted on the way
   out while the viewer's thread was still taking its window down.
 
 ``viewer`` may be ``None`` to run headless.
@@ -50,7 +50,6 @@ from ..preflight.measure import StepRecorder, collect
 from ..preflight.states import StateRecorder, derivable
 from ..sim.simulation import Observer, SegmentResult, Simulation
 from ..units import JOINT_NAMES, Pose
-from ..viewer.passive import close_at_exit
 from .arming import attached
 
 log = logging.getLogger(__name__)
@@ -144,7 +143,6 @@ def move_to_pose(
     clock. Returns the move's :class:`~so101sim.sim.simulation.SegmentResult` (the handout
     returned nothing; ignoring the result is fine). If the viewer is closed, returns early.
     """
-    close_at_exit(viewer)  # a script's own launch_passive viewer: no segfault at its end
     with attached(m, d) as sim:
         return _watched(
             sim,
@@ -164,7 +162,6 @@ def hold_position(
     Before any command, holds the pose it finds. (The handout re-read the sagging measured pose
     and let the arm creep under gravity.)
     """
-    close_at_exit(viewer)
     with attached(m, d) as sim:
         return _watched(
             sim,

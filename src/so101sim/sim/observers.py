@@ -10,9 +10,14 @@ These names are also importable from :mod:`so101sim.sim.stepping`, as before.
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import logging
 import math
+import sys
+import threading
 import time
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -200,3 +205,66 @@ __all__ = [
     "Trace",
     "ViewerObserver",
 ]
+
+
+# ---------------------------------------------------------------------------- a script's own viewer
+_EXIT_WAIT_S = 10.0
+"""At the interpreter's exit, how long :func:`close_at_exit` waits for the windows to close."""
+
+_scripts_viewers: list[Any] = []  # the open handles close_at_exit was given, closed at exit
+_scripts_windows: weakref.WeakSet[threading.Thread] = weakref.WeakSet()  # their window threads
+
+
+def _viewer_threads() -> list[threading.Thread]:
+    """The threads MuJoCo's ``launch_passive`` draws the windows on (named after their target,
+    ``Thread-N (_launch_internal)``, by Python's ``threading``; if MuJoCo renames it, none
+    are found and nothing is waited for)."""
+    return [t for t in threading.enumerate() if t.name.endswith("(_launch_internal)")]
+
+
+def _running(handle: Any) -> bool:
+    with contextlib.suppress(Exception):  # a handle whose viewer is gone
+        return bool(handle.is_running())
+    return False
+
+
+def _close_scripts_viewers() -> None:
+    """Close the viewers :func:`close_at_exit` was given and wait (at most
+    :data:`_EXIT_WAIT_S` in all) until the window threads that were open when it was called
+    are gone."""
+    for handle in _scripts_viewers:
+        with contextlib.suppress(Exception):  # already closed, or its window failed
+            handle.close()
+    _scripts_viewers.clear()
+    deadline = time.monotonic() + _EXIT_WAIT_S
+    for t in list(_scripts_windows):
+        if t is not threading.current_thread():
+            t.join(timeout=max(0.0, deadline - time.monotonic()))
+
+
+def close_at_exit(viewer: Any) -> None:
+    """Make a script's own passive viewer (``mujoco.viewer.launch_passive``) end cleanly when
+    the script ends.
+
+    A script that leaves ``with mujoco.viewer.launch_passive(m, d) as viewer:`` and ends (the
+    lab handout's pattern) ends while the viewer's daemon thread is still taking its window
+    down, and MuJoCo's exit handler terminates GLFW under it: the process often segfaults
+    after the script's last line (exit 139; MuJoCo issue 790; 8 runs of 10 on Mesa's software
+    OpenGL here). This registers an exit handler that closes the viewer and waits, at most
+    :data:`_EXIT_WAIT_S`, for the viewers' window threads open at this call, and puts it after
+    every handler registered so far, so it runs before GLFW is terminated (exit handlers run
+    last registered first; each viewer opened registers GLFW's again, so call this for each).
+    Only the open handles are kept (a closed one is let go). A second viewer open at this call
+    but never given here is waited for too (its window closes only at its own exit handler,
+    which runs after this one): up to :data:`_EXIT_WAIT_S` more at exit. Anything but a MuJoCo
+    viewer handle (``None``, a recorder standing in for it) is left alone. The lab helpers
+    call it with the viewer they are given.
+    """
+    handle_type = getattr(sys.modules.get("mujoco.viewer"), "Handle", None)
+    if handle_type is None or not isinstance(viewer, handle_type):
+        return
+    _scripts_viewers[:] = [v for v in _scripts_viewers if v is not viewer and _running(v)]
+    _scripts_viewers.append(viewer)
+    _scripts_windows.update(_viewer_threads())
+    atexit.unregister(_close_scripts_viewers)
+    atexit.register(_close_scripts_viewers)

@@ -39,6 +39,7 @@ from ..units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose
 from ..validation import MAX_DURATION_S, check_count
 from .armstate import ATTACHED, ArmState, ArmTargets, check_data
 from .moveplan import Shape, TipPath, move_shape, plan_joint_move, plan_tip_move
+from .observers import close_at_exit
 from .profiles import duration_warning, steps_for
 from .results import TRACE_AUTO_STEPS, ErrorTracker, SegmentKind, SegmentResult, keep_trace
 from .stepping import (
@@ -153,6 +154,7 @@ class Simulation(ArmTargets):
             )
         obs = self._state.viewers.get(viewer)
         if obs is None:
+            close_at_exit(viewer)  # a script's own launch_passive viewer: no segfault at its end
             obs = self._state.viewers[viewer] = ViewerObserver(viewer)
         return obs
 

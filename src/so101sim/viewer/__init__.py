@@ -7,6 +7,7 @@ May import: ``so101sim.recording`` (the draft meshes), ``so101sim.motion``, ``so
 ``so101sim.kinematics``, ``so101sim.model``, ``so101sim.units`` and the base modules.
 """
 
+from ..sim.observers import close_at_exit  # a script's own viewer, at its end
 from .passive import (
     ARM_DISTANCE,
     ARM_LOOKAT,
@@ -20,7 +21,6 @@ from .passive import (
     ViewerChoice,
     ViewerQuality,
     choose_viewer,
-    close_at_exit,
     copy_state,
     frame_arm,
     has_display,
