@@ -324,3 +324,64 @@ def test_a_video_in_a_folder_that_cannot_hold_files_is_a_one_line_error(capsys):
     err = capsys.readouterr().err.strip()
     assert err.startswith("so101sim: error: cannot write the video '/proc/lab.mp4'")
     assert len(err.splitlines()) == 1 and "Traceback" not in err
+
+
+def test_a_run_the_viewer_could_not_show_at_real_time_says_so(monkeypatch, capsys):
+    # no display is needed: the viewer is a stand-in, and the run's wall clock jumps 0.5 s at
+    # every frame it paces (a machine far too slow to draw the run at real time)
+    import contextlib
+
+    from so101sim.cli import runplan
+    from so101sim.sim.simulation import Pacer
+    from so101sim.viewer import ViewerChoice
+
+    class StandIn:
+        def sync(self):
+            pass
+
+        def is_running(self):
+            return True
+
+    wall = iter(range(0, 10**6))
+    monkeypatch.setattr(runplan, "choose_viewer", lambda headless=False: ViewerChoice(use=True))
+    monkeypatch.setattr(runplan, "open_viewer", lambda *a, **k: contextlib.nullcontext(StandIn()))
+    monkeypatch.setattr(
+        runplan,
+        "Pacer",
+        lambda speed: Pacer(speed, clock=lambda: 0.5 * next(wall), sleep=lambda s: None),
+    )
+    assert main(["run"]) == 0
+    out = capsys.readouterr().out
+    assert "return [move" in out  # the run's report, then the note
+    note = out.strip().splitlines()[-1]
+    assert note.startswith("note: the viewer fell ") and "behind real time" in note
+    assert "the simulated time and every figure above are exact anyway" in note
+    assert "headless" not in out
+
+
+def test_a_run_that_keeps_real_time_says_nothing_of_it(monkeypatch, capsys):
+    import contextlib
+
+    from so101sim.cli import runplan
+    from so101sim.sim.simulation import Pacer
+    from so101sim.viewer import ViewerChoice
+
+    class StandIn:
+        def sync(self):
+            pass
+
+        def is_running(self):
+            return True
+
+    monkeypatch.setattr(runplan, "choose_viewer", lambda headless=False: ViewerChoice(use=True))
+    monkeypatch.setattr(runplan, "open_viewer", lambda *a, **k: contextlib.nullcontext(StandIn()))
+    # a clock that sleeping moves exactly on: never behind
+    t = [0.0]
+    monkeypatch.setattr(
+        runplan,
+        "Pacer",
+        lambda speed: Pacer(speed, clock=lambda: t[0], sleep=lambda s: t.__setitem__(0, t[0] + s)),
+    )
+    assert main(["run", "--speed", "8"]) == 0
+    out = capsys.readouterr().out
+    assert "return [move" in out and "behind real time" not in out

@@ -105,7 +105,7 @@ def test_pacer_speed_and_catching_up():
     assert clock.t == pytest.approx(100.6) and pacer.lag_events == 0
     clock.t += 5.0  # a long stall: re-anchor instead of racing
     pacer.wait(2.2)
-    assert pacer.lag_events == 1
+    assert pacer.lag_events == 1 and pacer.lag_s == pytest.approx(5.0)  # due at 100.6
     pacer.wait(3.2)
     assert clock.t == pytest.approx(105.6 + 0.5)
 

@@ -69,6 +69,7 @@ class Pacer:
         self.max_lag = max_lag
         self._anchor: tuple[float, float] | None = None
         self.lag_events = 0
+        self.lag_s = 0.0  # wall seconds the run fell behind in all, at the re-anchorings
 
     def reset(self) -> None:
         """Forget the anchor: the next :meth:`wait` starts a new timeline."""
@@ -87,6 +88,7 @@ class Pacer:
             return delay
         if -delay > self.max_lag:
             self.lag_events += 1
+            self.lag_s += -delay
             log.debug("pacing %.3f s behind the wall clock; re-anchoring", -delay)
             self._anchor = (now, sim_time)
         return 0.0
