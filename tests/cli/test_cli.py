@@ -326,62 +326,46 @@ def test_a_video_in_a_folder_that_cannot_hold_files_is_a_one_line_error(capsys):
     assert len(err.splitlines()) == 1 and "Traceback" not in err
 
 
-def test_a_run_the_viewer_could_not_show_at_real_time_says_so(monkeypatch, capsys):
-    # no display is needed: the viewer is a stand-in, and the run's wall clock jumps 0.5 s at
-    # every frame it paces (a machine far too slow to draw the run at real time)
+class _StandInViewer:
+    def sync(self):
+        pass
+
+    def is_running(self):
+        return True
+
+
+def _run_with_a_viewer(monkeypatch, clock, sleep, *argv):
+    """``so101sim run`` in-process with a stand-in viewer (no display needed), its pacing on
+    ``clock`` and ``sleep``; returns its stdout."""
     import contextlib
 
     from so101sim.cli import runplan
     from so101sim.sim.simulation import Pacer
     from so101sim.viewer import ViewerChoice
 
-    class StandIn:
-        def sync(self):
-            pass
-
-        def is_running(self):
-            return True
-
-    wall = iter(range(0, 10**6))
     monkeypatch.setattr(runplan, "choose_viewer", lambda headless=False: ViewerChoice(use=True))
-    monkeypatch.setattr(runplan, "open_viewer", lambda *a, **k: contextlib.nullcontext(StandIn()))
-    monkeypatch.setattr(
-        runplan,
-        "Pacer",
-        lambda speed: Pacer(speed, clock=lambda: 0.5 * next(wall), sleep=lambda s: None),
-    )
-    assert main(["run"]) == 0
+    stand_in = contextlib.nullcontext(_StandInViewer())
+    monkeypatch.setattr(runplan, "open_viewer", lambda *a, **k: stand_in)
+    monkeypatch.setattr(runplan, "Pacer", lambda speed: Pacer(speed, clock=clock, sleep=sleep))
+    assert main(["run", *argv]) == 0
+
+
+def test_a_run_the_viewer_could_not_show_at_real_time_says_so(monkeypatch, capsys):
+    # the run's wall clock jumps 0.5 s at every frame it paces (a machine far too slow to draw
+    # the run at real time)
+    wall = iter(range(10**6))
+    _run_with_a_viewer(monkeypatch, lambda: 0.5 * next(wall), lambda s: None)
     out = capsys.readouterr().out
     assert "return [move" in out  # the run's report, then the note
     note = out.strip().splitlines()[-1]
-    assert note.startswith("note: the viewer fell ") and "behind real time" in note
+    assert note.startswith("note: the viewer fell behind real time ") and " s in all)" in note
     assert "the simulated time and every figure above are exact anyway" in note
     assert "headless" not in out
 
 
 def test_a_run_that_keeps_real_time_says_nothing_of_it(monkeypatch, capsys):
-    import contextlib
-
-    from so101sim.cli import runplan
-    from so101sim.sim.simulation import Pacer
-    from so101sim.viewer import ViewerChoice
-
-    class StandIn:
-        def sync(self):
-            pass
-
-        def is_running(self):
-            return True
-
-    monkeypatch.setattr(runplan, "choose_viewer", lambda headless=False: ViewerChoice(use=True))
-    monkeypatch.setattr(runplan, "open_viewer", lambda *a, **k: contextlib.nullcontext(StandIn()))
-    # a clock that sleeping moves exactly on: never behind
-    t = [0.0]
-    monkeypatch.setattr(
-        runplan,
-        "Pacer",
-        lambda speed: Pacer(speed, clock=lambda: t[0], sleep=lambda s: t.__setitem__(0, t[0] + s)),
-    )
-    assert main(["run", "--speed", "8"]) == 0
+    t = [0.0]  # a clock that sleeping moves exactly on: never behind
+    sleep = lambda s: t.__setitem__(0, t[0] + s)  # noqa: E731
+    _run_with_a_viewer(monkeypatch, lambda: t[0], sleep, "--speed", "8")
     out = capsys.readouterr().out
     assert "return [move" in out and "behind real time" not in out

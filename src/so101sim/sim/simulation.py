@@ -39,18 +39,10 @@ from ..units import JOINT_NAMES, STARTING_POSE, ArmUnits, Pose
 from ..validation import MAX_DURATION_S, check_count
 from .armstate import ATTACHED, ArmState, ArmTargets, check_data
 from .moveplan import Shape, TipPath, move_shape, plan_joint_move, plan_tip_move
-from .observers import close_at_exit
+from .observers import Observer, Pacer, Trace, ViewerObserver, close_at_exit
 from .profiles import duration_warning, steps_for
 from .results import TRACE_AUTO_STEPS, ErrorTracker, SegmentKind, SegmentResult, keep_trace
-from .stepping import (
-    Observer,
-    Pacer,
-    Trace,
-    ViewerObserver,
-    advance,
-    advance_unobserved,
-    measured_radians,
-)
+from .stepping import advance, advance_unobserved, measured_radians
 
 if TYPE_CHECKING:
     from ..kinematics import Kinematics, TipPose
