@@ -10,7 +10,8 @@ shared copy of the fit split). Neither is shipped: the data has no licence.
 Of each (mass, length, P, trajectory) condition's two runs the one whose file name sorts first
 is for fitting, the other for validation; ``--split`` picks which are scored (validation by
 default; an .npz of the fit split is scored whole). Printed, side by side: the mean per-run
-absolute position error (rad) of each profile (``official``, the shipped ``sts3215`` fit) and
+absolute position error (rad) of each profile (``official``, the shipped ``sts3215`` fit, with
+holding friction, and ``sts3215-load``) and
 of Rhoban's BAM M1 simulated from the data's authors' parameters (``friction_params/m1.json``
 beside ``processed/``, or ``--bam-m1``), overall and per trajectory, and the wall time each
 model took on this machine (a ratio, not a figure to quote alone).
@@ -19,6 +20,9 @@ model took on this machine (a ratio, not a figure to quote alone).
 FIT runs in PATH, starting from the shipped ``sts3215``, write the profile to OUT.toml (at 12 V
 as measured, driven at 7.4 V like the shipped one) and score it beside the others: how the
 shipped ``sts3215.toml`` was made (``--iterations 40``, every 4th sample).
+
+``--load-friction`` (with ``--fit``): fit with friction that holds (``static_friction``) and
+the load-dependent gearbox friction (``load_friction``, from 0.02) too.
 
 ``--spread`` (with ``--fit``): also fit each trajectory family of the FIT runs on its own and
 print how far the parameters move between families; the profile's ``[uncertainty]`` table (the
@@ -63,22 +67,32 @@ def family_spread(runs: list, iterations: int) -> dict[str, float]:
     return sd
 
 
-def fit_profile(runs: list, out: Path, iterations: int, spread: bool = False) -> Path:
+def fit_profile(
+    runs: list, out: Path, iterations: int, spread: bool = False, load: bool = False
+) -> Path:
     """Fit the servo on ``runs`` from the shipped sts3215 and write the profile to ``out``
-    (its ``[uncertainty]``: the standard errors, with the families' spread when ``spread``)."""
+    (its ``[uncertainty]``: the standard errors, with the families' spread when ``spread``).
+    ``load``: with holding friction, and the load-dependent friction fitted too (from 0.02)."""
     from dataclasses import replace
 
-    from so101sim.fidelity.benchfit import fit_bench
-    from so101sim.model.arm import load_profile, profile_toml
+    from so101sim.fidelity.benchfit import FIT_PARAMS, fit_bench
+    from so101sim.model.arm import UNCERTAIN_FIELDS, load_profile, profile_toml
 
     if not runs:
         raise SystemExit("no FIT runs to fit on")
     t0 = time.perf_counter()
-    res = fit_bench(runs, "sts3215", every=4, max_evaluations=iterations)
     start = load_profile("sts3215")
+    names = FIT_PARAMS
+    if load:
+        start = replace(start, static_friction=True,
+                        servo=replace(start.servo, load_friction=0.02))  # fmt: skip
+        names = (*FIT_PARAMS, "load_friction")
+    res = fit_bench(runs, start, names=names, every=4, max_evaluations=iterations)
     sd = family_spread(runs, iterations) if spread else {}
-    sigma = {k: float(np.hypot(res.stderr[k], sd.get(k, 0.0))) for k in res.names}
-    prof = replace(start, name="sts3215-refit", servo=replace(res.servo, torque_scale=1.0),
+    sigma = {k: float(np.hypot(res.stderr[k], sd.get(k, 0.0))) for k in res.names
+             if k in UNCERTAIN_FIELDS}  # fmt: skip  # what domain randomisation draws
+    name = "sts3215-refit-load" if load else "sts3215-refit"
+    prof = replace(start, name=name, servo=replace(res.servo, torque_scale=1.0),
                    uncertainty=sigma)  # fmt: skip
     errs = ", ".join(f"{k} ±{v:.2g}" for k, v in res.stderr.items())
     how = "standard errors and the trajectory families' spread" if spread else "standard errors"
@@ -103,6 +117,8 @@ def main() -> None:
     ap.add_argument("--fit", type=Path, default=None, help="fit on the FIT runs, write here")
     ap.add_argument("--iterations", type=int, default=40, help="solver evaluations (--fit)")
     ap.add_argument("--spread", action="store_true", help="also fit each trajectory family")
+    ap.add_argument("--load-friction", action="store_true",
+                    help="--fit with holding friction and load-dependent friction")  # fmt: skip
     args = ap.parse_args()
 
     runs = load_bench_runs(args.path)
@@ -113,7 +129,7 @@ def main() -> None:
         raise SystemExit(f"no {split} runs in {args.path}")
     print(f"{len(chosen)} {split} runs of {len(runs)} in {args.path}")
 
-    arms: list = list(args.arm or ["official", "sts3215"])
+    arms: list = list(args.arm or ["official", "sts3215", "sts3215-load"])
     if args.arm is None:  # side by side: the shipped fit with friction that holds (noslip)
         from dataclasses import replace
 
@@ -122,7 +138,7 @@ def main() -> None:
         held = replace(load_profile("sts3215"), name="sts3215-hold", static_friction=True)
         arms.insert(2, held)
     if args.fit is not None:
-        arms.append(fit_profile(fit, args.fit, args.iterations, args.spread))
+        arms.append(fit_profile(fit, args.fit, args.iterations, args.spread, args.load_friction))
     columns: dict[str, dict[str, float]] = {}
     times: dict[str, float] = {}
     for arm in arms:

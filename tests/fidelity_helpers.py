@@ -49,8 +49,9 @@ def record(
 ) -> list[Episode]:
     """Episodes of ``arm`` following :func:`commands` for each seed, from the first command.
     ``load_friction`` k: a gearbox whose Coulomb friction grows with the load (Rhoban's BAM
-    M3-M6), each joint's friction ``frictionloss + k * |servo torque|`` at every step, which
-    no so101sim profile models (the hidden arm is not one the fit can be exactly)."""
+    M3-M6), each joint's friction ``frictionloss + k * |servo torque|`` at every step (a
+    profile's ``load_friction`` sets it every 10 ms: the hidden arm is not one the fit can be
+    exactly)."""
     if not load_friction:
         sim = Simulation(arm=arm)
         replay = replay_episode

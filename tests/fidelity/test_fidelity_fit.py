@@ -55,11 +55,18 @@ def test_fit_recovers_the_hidden_arm_and_predicts_held_out_motion(episodes):
     assert res.start_heldout_error["shoulder_lift"] > 3 * res.heldout_error["shoulder_lift"]
 
 
-def test_cli_fit_writes_a_profile_compare_accepts(tmp_path, episodes, capsys):
+def _cli_fit(tmp_path, episodes, iterations: int, *more: str):
+    """``so101sim fit`` of ``episodes`` written as a LeRobot dataset: its folder, the profile's
+    path and the exit code."""
     root = write_lerobot(tmp_path / "ds", episodes)
     out = tmp_path / "arm.toml"
-    code = main(["fit", str(root), "-o", str(out), "--units", "degrees", "--iterations", "4",
-                 "--episodes", "0-2"])  # fmt: skip
+    code = main(["fit", str(root), "-o", str(out), "--units", "degrees", "--iterations",
+                 str(iterations), *more])  # fmt: skip
+    return root, out, code
+
+
+def test_cli_fit_writes_a_profile_compare_accepts(tmp_path, episodes, capsys):
+    root, out, code = _cli_fit(tmp_path, episodes, 4, "--episodes", "0-2")
     assert code == 0
     text = capsys.readouterr().out
     assert "held-out episodes 2" in text and "±" in text and "delay_s" in text
@@ -91,3 +98,17 @@ def test_standard_errors_count_an_error_that_lasts_many_frames_once():
     assert got_white == pytest.approx(plain, rel=0.1)
     ratio = got_smooth / (plain * np.sqrt(np.mean(smooth**2) / np.mean(white**2)))
     assert np.all(ratio > 3.0) and np.all(ratio < 10.0)  # sqrt((1+rho)/(1-rho)), rho 0.95: 6.2
+
+
+def test_cli_fit_load_friction_writes_each_joints_value(tmp_path, episodes, capsys):
+    root, out, code = _cli_fit(tmp_path, episodes, 2, "--load-friction", "--force")
+    assert code == 0
+    assert "load_friction" in capsys.readouterr().out  # the per-joint table
+    prof = load_profile(out)
+    values = [prof.joint(j).load_friction for j in JOINT_NAMES]
+    assert all(0.0 <= v <= 0.3 for v in values) and "load_friction" in out.read_text()
+    assert "load_friction" not in out.read_text().split("[uncertainty]")[1]  # not drawn from
+    # a servo field and no servo field at once: refused before any work
+    out2 = tmp_path / "two.toml"
+    assert main(["fit", str(root), "-o", str(out2), "--load-friction", "--calibration-only"]) == 2
+    assert "--load-friction" in capsys.readouterr().err and not out2.exists()

@@ -73,6 +73,12 @@ def add_parsers(sub: SubParsers) -> None:
         help="keep --arm's servos and delay; fit only each body joint's calibration (scale and "
         "offset) of a range-mode recording without LeRobot's calibration JSON",
     )
+    p.add_argument(
+        "--load-friction",
+        action="store_true",
+        help="also fit each joint's gear friction that grows with the servo's torque "
+        "(load_friction, N·m per N·m; the replays then run slower)",
+    )
     p.add_argument("--threads", type=int, help="threads for the rollouts (default: the cores)")
     p.add_argument(
         "--force",
@@ -229,7 +235,7 @@ def _eps(eps: list[int]) -> str:
 
 def cmd_fit(args: argparse.Namespace) -> int:
     # this command's modules, loaded when it runs (every other command starts without them)
-    from ..fidelity.fit import fit
+    from ..fidelity.fit import FIT_NAMES, fit
     from ..fidelity.fitparams import body_mean
     from ..fidelity.logs import parse_episodes
     from ..model.arm import profile_toml
@@ -241,6 +247,11 @@ def cmd_fit(args: argparse.Namespace) -> int:
     if episodes is not None and holdout is not None:
         # `--episodes 0-1 --holdout 2-3`: fit on 0-1, predict 2-3 (the held-out ones are read too)
         episodes = sorted(set(episodes) | set(holdout))
+    if args.load_friction and args.calibration_only:
+        raise SettingError(
+            "--load-friction fits a servo field and --calibration-only none; expected one of them"
+        )
+    names = {"names": (*FIT_NAMES, "load_friction")} if args.load_friction else {}
     result = fit(
         args.logs,
         arm=args.arm,
@@ -250,6 +261,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
         holdout=holdout,
         robot_id=args.robot_id,
         **_only_calibration(args.calibration_only),
+        **names,
         max_evaluations=args.iterations,
         threads=args.threads,
         model=args.model,

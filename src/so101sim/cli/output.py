@@ -52,7 +52,8 @@ class EscapingFormatter(logging.Formatter):
 ARM_HELP = (
     "arm profile, the servos' model: sts3215 (default: fitted on a real STS3215, it sags and "
     "lags as the real arm does), official (the vendored ideal position actuators), "
-    "sts3215-12v, or a TOML file written by `so101sim fit`"
+    "sts3215-12v, sts3215-load (with gear friction that grows with the load), or a TOML file "
+    "written by `so101sim fit`"
 )
 
 

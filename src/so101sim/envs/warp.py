@@ -36,6 +36,7 @@ from gymnasium.vector.utils import batch_space
 
 from ..errors import MissingDependencyError, SettingError
 from ..model.load import arm_index
+from ..model.loadfriction import active_load_friction
 from ..scenes import object_qpos
 from ..validation import check_choice, check_count
 from .reach import REACH_SCALE, REACH_SUCCESS_M, ReachEnv
@@ -118,6 +119,11 @@ class WarpVectorEnv(VectorEnv):
         env = self.env
         self.control = control
         model = env.model
+        if active_load_friction(model) is not None:
+            raise SettingError(
+                "MuJoCo Warp cannot run an arm profile with load_friction (so101sim sets that "
+                "friction between steps on the CPU); expected a profile without it"
+            )
         try:
             with self.wp.ScopedDevice(device):
                 self.m_dev = self.mjw.put_model(model)

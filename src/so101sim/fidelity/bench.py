@@ -27,6 +27,7 @@ from ..model.arm import (
     load_profile,
 )
 from ..model.build import build, made_recipe
+from ..model.loadfriction import add_load_friction, write_load_friction
 from ..model.servo import NOSLIP_ITERATIONS
 from ..sim.stepping import advance_unobserved, state_size
 from ..validation import check_count, check_range
@@ -126,6 +127,8 @@ class BenchBatch:
             apply_servo(spec, f"servo{i}", act, delayed, self.timestep)
         if self.profile.static_friction:  # as apply_profile does for the arm
             spec.option.noslip_iterations = NOSLIP_ITERATIONS
+        # a load-friction slot per pendulum (0: none), its coefficient written by set_servo
+        add_load_friction(spec, {f"servo{i}": 0.0 for i in range(len(self.rigs))})
         # the model builder compiles it (a model made by code: built each time, never cached)
         self.model = build(made_recipe("servo bench", lambda: spec, arm=self.profile))
         self.data = mujoco.MjData(self.model)
@@ -160,6 +163,8 @@ class BenchBatch:
         m.actuator_forcerange[:, 0] = [-s.force_limit for s in servos]
         m.actuator_forcerange[:, 1] = [s.force_limit for s in servos]
         m.dof_armature[:] = [s.armature for s in servos]
+        for i, s in enumerate(servos):
+            write_load_friction(m, int(m.jnt_dofadr[i]), s.load_friction)
         m.actuator_delay[:] = [s.delay_s for s in servos]
         if self.slew:
             m.actuator_dynprm[:, 1] = [s.max_velocity or 1e3 for s in servos]

@@ -68,10 +68,10 @@ lets go (lift-and-drop's free fall from about 2 s)."""
 
 _LOW = {"kp_per_p": 0.05, "torque_limit": 0.2, "damping": 0.0, "viscous": 0.0,
         "frictionloss": 0.0, "drive_frictionloss": 0.0, "armature": 0.001, "delay_s": 0.0,
-        "smoothing_s": 0.0, "max_velocity": 1.0}  # fmt: skip
+        "smoothing_s": 0.0, "max_velocity": 1.0, "load_friction": 0.0}  # fmt: skip
 _HIGH = {"kp_per_p": 20.0, "torque_limit": 10.0, "damping": 10.0, "viscous": 5.0,
          "frictionloss": 2.0, "drive_frictionloss": 2.0, "armature": 0.2, "delay_s": 0.1,
-         "smoothing_s": 0.1, "max_velocity": 30.0}  # fmt: skip
+         "smoothing_s": 0.1, "max_velocity": 30.0, "load_friction": 0.5}  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,7 @@ BOUNDS = {
     "viscous": (0.0, 10.0),
     "frictionloss": (0.0, 3.0),
     "drive_frictionloss": (0.0, 3.0),
+    "load_friction": (0.0, 0.3),
     "armature": (1e-4, 0.5),
     "offset": (-0.2, 0.2),
     "delay_s": (0.0, MAX_DELAY_S),
@@ -47,10 +48,17 @@ BOUNDS = {
     "cal_offset": (-15.0, 15.0),
 }
 TYPICAL = {"kp_per_p": 0.5, "torque_limit": 1.0, "damping": 0.5, "viscous": 0.1,
-           "frictionloss": 0.05, "drive_frictionloss": 0.05, "armature": 0.01,
+           "frictionloss": 0.05, "drive_frictionloss": 0.05, "load_friction": 0.02,
+           "armature": 0.01,
            "offset": 0.01, "delay_s": 0.01, "max_velocity": 1.0, "cal_scale": 0.05,
            "cal_offset": 1.0}  # fmt: skip
-PRIOR_SD = {"offset": 0.05, "delay_s": 0.05, "cal_scale": 0.1, "cal_offset": 5.0}
+PRIOR_SD = {
+    "offset": 0.05,
+    "delay_s": 0.05,
+    "cal_scale": 0.1,
+    "cal_offset": 5.0,
+    "load_friction": 0.1,
+}
 """Absolute standard deviations of the weak prior; the others: 50 % of the starting value."""
 READING_STEP_DEG = 360.0 / 4096
 """An STS3215's position reading step (4096 per turn), degrees: the least error of any reading."""

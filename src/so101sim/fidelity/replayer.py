@@ -16,8 +16,9 @@ import mujoco
 import numpy as np
 
 from ..model.arm import ArmProfile, ServoParams, fill_delay_history, write_servo
-from ..model.build import build, recipe
+from ..model.build import Addition, build, recipe
 from ..model.load import arm_index, arm_units
+from ..model.loadfriction import add_load_friction_slots
 from ..sim.stepping import BatchStepper
 from ..units import JOINT_NAMES, ArmUnits
 from ..validation import check_count
@@ -35,12 +36,14 @@ Calibration = tuple[np.ndarray, np.ndarray]  # per joint: the reading's scale an
 
 def replay_model(base: ArmProfile, model_path: str | Path | None) -> mujoco.MjModel:
     """The model a fit replays on: ``base`` applied with the longest delay a fit considers (so
-    any delay up to it can be written in place)."""
+    any delay up to it can be written in place) and a load-friction slot on every joint (so
+    any ``load_friction`` can be; a slot at 0 steps as a joint without one)."""
     wide = replace(base, servo=replace(base.servo, delay_s=MAX_DELAY_S),
                    joints={j: {k: v for k, v in d.items() if k != "delay_s"}
                            for j, d in base.joints.items()})  # fmt: skip
     # the model builder's, a one-off (not cached); the batch's copies are what the fit writes into
-    return build(recipe(model_path, arm=wide, keep=False))
+    slots = Addition(None, add_load_friction_slots)
+    return build(recipe(model_path, arm=wide, keep=False, additions=(slots,)))
 
 
 class ArmReplayer:

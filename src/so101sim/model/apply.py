@@ -11,6 +11,7 @@ import numpy as np
 
 from ..errors import ProfileError
 from ..units import JOINT_NAMES
+from .loadfriction import add_load_friction
 from .profiles import load_profile
 from .servo import NOSLIP_ITERATIONS, ArmLike, ArmProfile, ServoParams
 
@@ -73,7 +74,10 @@ def apply_profile(spec: mujoco.MjSpec, profile: ArmLike) -> ArmProfile:
     names = {j.name for j in spec.joints}
     if prof.static_friction:  # Coulomb friction that holds (no creep under a steady load)
         spec.option.noslip_iterations = max(spec.option.noslip_iterations, NOSLIP_ITERATIONS)
-    for name in JOINT_NAMES:
-        if name in names and name in by_joint:
-            apply_servo(spec, name, by_joint[name], prof.joint(name), timestep)
+    driven = [n for n in JOINT_NAMES if n in names and n in by_joint]
+    for name in driven:
+        apply_servo(spec, name, by_joint[name], prof.joint(name), timestep)
+    loads = {n: prof.joint(n).load_friction for n in driven}
+    if any(k > 0 for k in loads.values()):  # friction that grows with the servo's torque
+        add_load_friction(spec, loads)
     return prof

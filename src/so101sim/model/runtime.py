@@ -8,6 +8,7 @@ import mujoco
 import numpy as np
 
 from ..errors import ProfileError
+from .loadfriction import write_load_friction
 from .servo import ServoParams
 
 _GOAL_STATE_DYN = (int(mujoco.mjtDyn.mjDYN_FILTEREXACT), int(mujoco.mjtDyn.mjDYN_PID))
@@ -39,7 +40,8 @@ def write_servo(model: mujoco.MjModel, actuator: int, dof: int, params: ServoPar
     and fits. The delay must lie within the history the model was compiled with.
 
     Raises:
-        ProfileError: the delay is beyond the actuator's history.
+        ProfileError: the delay is beyond the actuator's history, or a ``load_friction`` > 0
+            on a model compiled without load friction.
     """
     n = int(model.actuator_history[actuator, 0])
     reach = max(n - 2, 0) * model.opt.timestep
@@ -71,3 +73,4 @@ def write_servo(model: mujoco.MjModel, actuator: int, dof: int, params: ServoPar
     model.dof_damping[dof] = params.joint_damping
     model.dof_frictionloss[dof] = params.joint_frictionloss
     model.dof_armature[dof] = params.armature
+    write_load_friction(model, dof, params.load_friction)

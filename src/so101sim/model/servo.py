@@ -39,6 +39,7 @@ _BOUNDS: dict[str, tuple[float, float, str]] = {
     "viscous": (0.0, 50.0, " N·m·s/rad"),
     "frictionloss": (0.0, 10.0, " N·m"),
     "drive_frictionloss": (0.0, 10.0, " N·m"),
+    "load_friction": (0.0, 0.5, " N·m per N·m of servo torque"),
     "armature": (0.0, 1.0, " kg·m²"),
     "delay_s": (0.0, 0.5, " s"),
     "smoothing_s": (0.0, 0.5, " s"),
@@ -113,6 +114,7 @@ class ServoParams:
     viscous: float = 0.0
     frictionloss: float = 0.0
     drive_frictionloss: float = 0.0
+    load_friction: float = 0.0
     armature: float = 0.0
     delay_s: float = 0.0
     smoothing_s: float = 0.0

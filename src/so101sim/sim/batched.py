@@ -24,6 +24,7 @@ went back: MuJoCo reset the data); a diverged world is stepped again from its st
 
 from __future__ import annotations
 
+import copy
 import os
 import threading
 from collections.abc import Callable
@@ -36,8 +37,9 @@ from mujoco import rollout as _rollout
 
 from ..errors import ClosedError
 from ..exitgate import mujoco_call
+from ..model.loadfriction import active_load_friction, load_friction
 from ..validation import check_count
-from .stepping import ADVICE, state_size, step_block
+from .stepping import ADVICE, state_size, step_block, step_loaded
 
 _STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
 _CTRL = mujoco.mjtState.mjSTATE_CTRL.value
@@ -65,6 +67,12 @@ class _World:
     def step(self, runner: Any, k: int) -> bool:
         """Step ``k`` times holding ``d.ctrl``; False if MuJoCo reset the data (diverged)."""
         m, d = self.m, self.d
+        loaded = active_load_friction(m)
+        if loaded is not None:  # the kernel's loop, the load's friction set as it goes
+            t0 = d.time
+            mujoco.mj_getState(m, d, self.s0[0], _STATE)
+            step_loaded(m, d, loaded, k)
+            return d.time >= t0 + (k - 0.5) * m.opt.timestep
         if self.n != k:
             self.n = k
             self.ctrl = np.empty((1, k, m.nu))
@@ -109,7 +117,13 @@ class WorldStepper:
         threads = check_count(threads, "nthread", minimum=1, maximum=MAX_THREADS)
         self.nthread = min(threads, n)
         self.advice = advice
-        self._worlds = [_World(m, d) for m, d in zip(models, datas, strict=True)]
+        seen: set[int] = set()
+        own = []  # a model with load friction is written as it steps: one copy per world
+        for m in models:
+            shared = id(m) in seen and load_friction(m) is not None
+            own.append(copy.copy(m) if shared else m)
+            seen.add(id(m))
+        self._worlds = [_World(m, d) for m, d in zip(own, datas, strict=True)]
         self._local = threading.local()
         self._pool: ThreadPoolExecutor | None = (
             ThreadPoolExecutor(self.nthread - 1, thread_name_prefix="so101sim-batch")

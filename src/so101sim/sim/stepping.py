@@ -37,9 +37,11 @@ from mujoco import rollout as _rollout
 from ..errors import ModelError
 from ..exitgate import mujoco_call
 from ..model.load import arm_index
+from ..model.loadfriction import LoadFriction, active_load_friction, step_index
 from ..model.twin import Twin, contact_twin
 from .batch import BatchStepper  # the kernel for many models at once, importable from here
 from .divergence import _DIVERGENCE_WARNINGS, _STATE_SPEC, ADVICE, _check_divergence, _warnings
+from .loaded import step_loaded  # the kernel's steps of a model with load friction
 from .observers import (  # the kernel's observers, importable from here as before
     MAX_PLAYBACK_SPEED,
     MAX_VIEWER_PERIOD,
@@ -85,14 +87,16 @@ def _step_block(
     sensordata: np.ndarray | None = None,
     counts: np.ndarray | None = None,
     forces: np.ndarray | None = None,
+    loaded: LoadFriction | None = None,
 ) -> np.ndarray:
     """Take ``len(ctrl_full)`` steps from the state ``s0`` (that of ``d``), applying row i of
     ``ctrl_full`` (all actuators) during step i; return the state after each step
     (FULLPHYSICS layout), and fill ``sensordata`` (one row per step) if given, ``counts``
-    and ``forces`` (each step's ``ncon`` and ``actuator_force``; the loop only) if given."""
+    and ``forces`` (each step's ``ncon`` and ``actuator_force``; the loop only) if given.
+    ``loaded``: the model's load friction, set in the loop (:mod:`so101sim.model.loadfriction`)."""
     k = len(ctrl_full)
     states = np.empty((k, len(s0)))
-    if k >= _ROLLOUT_MIN_STEPS and counts is None:
+    if k >= _ROLLOUT_MIN_STEPS and counts is None and loaded is None:
         _runner().rollout(
             [m],
             [d],
@@ -110,7 +114,13 @@ def _step_block(
         # rollout leaves d holding the last step's result; make ctrl match it, as a loop would.
         d.ctrl[:] = ctrl_full[-1]
     else:
+        first = 0
+        if loaded is not None:
+            first = step_index(d.time, m.opt.timestep)
+            loaded.restore(m, d)
         for i in range(k):
+            if loaded is not None and (first + i) % loaded.stride == 0:
+                loaded.update(m, d)
             d.ctrl[:] = ctrl_full[i]
             mujoco.mj_step(m, d)
             mujoco.mj_getState(m, d, states[i], _STATE_SPEC)
@@ -213,7 +223,11 @@ def step_block(
         d.warning[w].number = 0
     with mujoco_call():  # refused once the interpreter exits (exitgate)
         mujoco.mj_getState(m, d, s0, _STATE_SPEC)
-        if contact_counts is None:
+        loaded = active_load_friction(m)
+        if loaded is not None:  # a Python loop: the load's friction set as it goes
+            states = _step_block(m, d, ctrl_full, s0, sensordata, contact_counts,
+                                 actuator_forces, loaded)  # fmt: skip
+        elif contact_counts is None:
             states = _step_block(m, d, ctrl_full, s0, sensordata)
         elif len(ctrl_full) < _ROLLOUT_MIN_STEPS:  # a Python loop: d.ncon after each step
             states = _step_block(m, d, ctrl_full, s0, None, contact_counts, actuator_forces)
@@ -279,6 +293,7 @@ def advance_unobserved(
         d.ctrl[arm_index(m).actuator] = target
     s0 = scratch if scratch is not None else np.empty(state_size(m))
     dt = dt or m.opt.timestep
+    loaded = active_load_friction(m)
     done = 0
     while done < n:
         k = min(n - done, _CHUNK)
@@ -287,7 +302,10 @@ def advance_unobserved(
             t0 = float(s0[0])
             at_start = t0 < dt
             warned = _warnings(d) if at_start else 0
-            mujoco.mj_step(m, d, nstep=k)
+            if loaded is None:
+                mujoco.mj_step(m, d, nstep=k)
+            else:
+                step_loaded(m, d, loaded, k)
         if d.time < t0 + (k - 0.5) * dt or (at_start and _warnings(d) != warned):
             mujoco.mj_setState(m, d, s0, _STATE_SPEC)
             step_block(m, d, np.repeat(d.ctrl[None], k, axis=0), advice=advice)
@@ -391,4 +409,5 @@ __all__ = [
     "measured_radians",
     "state_size",
     "step_block",
+    "step_loaded",
 ]
