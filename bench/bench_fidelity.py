@@ -120,6 +120,8 @@ def main() -> None:
     ap.add_argument("--load-friction", action="store_true",
                     help="--fit with holding friction and load-dependent friction")  # fmt: skip
     args = ap.parse_args()
+    if args.load_friction and args.fit is None:
+        ap.error("--load-friction refits the servo: it needs --fit OUT.toml")
 
     runs = load_bench_runs(args.path)
     split = args.split or ("all" if args.path.suffix == ".npz" else "validation")

@@ -45,13 +45,20 @@ def commands(seed: int, seconds: float = 3.0, fps: float = FPS) -> tuple[np.ndar
 
 
 def record(
-    arm: ArmProfile, seeds: list[int], seconds: float = 3.0, load_friction: float = 0.0
+    arm: ArmProfile,
+    seeds: list[int],
+    seconds: float = 3.0,
+    load_friction: float = 0.0,
+    every_step: bool = True,
 ) -> list[Episode]:
     """Episodes of ``arm`` following :func:`commands` for each seed, from the first command.
     ``load_friction`` k: a gearbox whose Coulomb friction grows with the load (Rhoban's BAM
     M3-M6), each joint's friction ``frictionloss + k * |servo torque|`` at every step (a
     profile's ``load_friction`` sets it every 10 ms: the hidden arm is not one the fit can be
-    exactly)."""
+    exactly); ``every_step=False``: the profile's ``load_friction`` (an arm the fit can be)."""
+    if load_friction and not every_step:
+        arm = replace(arm, servo=replace(arm.servo, load_friction=load_friction))
+        load_friction = 0.0
     if not load_friction:
         sim = Simulation(arm=arm)
         replay = replay_episode

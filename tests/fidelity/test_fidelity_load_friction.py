@@ -1,10 +1,11 @@
 """A hidden arm whose gearbox friction grows with the load (Rhoban's BAM M3-M6, at the value
-BAM's authors fitted for this servo family), set at every physics step (a profile's
-``load_friction`` sets it every 10 ms: the hidden arm is not one the fit can be exactly).
+BAM's authors fitted for this servo family).
 
-Fitted with ``load_friction`` (``so101sim fit --load-friction``), the joints that carry the
-arm's weight get it back within their uncertainty and a held-out episode is predicted twice as
-well as by the same fit without it. Fitted without it, through a miscalibrated range-mode
+Fitted with ``load_friction`` (``so101sim fit --load-friction``) on an arm with the profile's
+``load_friction``, the joints that carry the arm's weight get it back within two standard
+errors and a held-out episode is predicted twice as well as by the same fit without it. On an
+arm whose friction follows the torque at every physics step (the profile's is set every 10 ms:
+not an arm the fit can be exactly), fitted without it, through a miscalibrated range-mode
 follower with its gripper blocked on an object, ``fit`` still predicts a held-out episode within
 0.5° and recovers each joint's calibration scale within its uncertainty; the unmodelled friction
 (it eases the sag under gravity, as an offset would) biases the fitted offsets by up to about 2°
@@ -31,7 +32,7 @@ CARRYING = ("shoulder_lift", "elbow_flex", "wrist_flex")  # the joints the arm's
 
 @pytest.mark.slow
 def test_fit_recovers_load_dependent_friction_where_the_servos_carry_the_arm(tmp_path):
-    loaded = record(true_arm(), [11, 12, 13, 14], 4.0, load_friction=LOAD_FRICTION)
+    loaded = record(true_arm(), [11, 12, 13, 14], 4.0, LOAD_FRICTION, every_step=False)
     root = write_lerobot(tmp_path / "ds", as_read(loaded, {}, blocked=(1.0, 2.5)))
     res = fit([root], arm="sts3215", names=("kp_per_p", "damping", "load_friction"),
               joints=JOINT_NAMES[:5], holdout=[3], max_evaluations=30, units="degrees")  # fmt: skip
@@ -41,7 +42,7 @@ def test_fit_recovers_load_dependent_friction_where_the_servos_carry_the_arm(tmp
     assert body_mean(held) < 0.2 and body_mean(held) < 0.1 * body_mean(default)
     for joint in CARRYING:
         got, se = res.values[joint]["load_friction"], res.stderr[joint]["load_friction"]
-        assert got > 0.02 and abs(got - LOAD_FRICTION) <= 2.5 * se, joint
+        assert got > 0.02 and abs(got - LOAD_FRICTION) <= 2 * se, joint
     shoulder = true_arm().joint("shoulder_lift", scaled=False).kp_per_p
     assert abs(res.values["shoulder_lift"]["kp_per_p"] - shoulder) < 0.15
     assert (

@@ -11,7 +11,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from so101sim.errors import ProfileError
+from so101sim.errors import ProfileError, SimulationDivergedError
 from so101sim.model.arm import load_profile, profile_from_toml, profile_toml, write_servo
 from so101sim.model.load import arm_index, load_model
 from so101sim.model.loadfriction import UPDATE_PERIOD_S, active_load_friction, load_friction
@@ -65,7 +65,7 @@ def test_writing_load_friction_into_a_model_without_it_is_refused():
     m = copy.copy(load_model())
     idx = arm_index(m)
     servo = _loaded(0.05).joint("elbow_flex")
-    with pytest.raises(ProfileError, match="load_friction"):
+    with pytest.raises(ProfileError, match=r"load_friction = 0\.05 .* joint 'elbow_flex'"):
         write_servo(m, int(idx.actuator[2]), int(idx.dof[2]), servo)
     write_servo(m, int(idx.actuator[2]), int(idx.dof[2]), replace(servo, load_friction=0.0))
 
@@ -113,13 +113,21 @@ def test_the_friction_follows_the_servo_torque_and_every_path_steps_the_same_phy
 
 
 def test_a_zero_coefficient_steps_as_a_model_without_load_friction():
+    """Also after the model stepped with a coefficient above 0 (its share must not linger)."""
     m = copy.copy(load_model(arm=_loaded(0.05)))
-    m.numeric_data[load_friction(m).numerics] = 0.0
-    assert active_load_friction(m) is None
-    plain = load_model()
-    d, d0 = _started(m), _started(plain)
+    advance_unobserved(m, _started(m), None, 300)
+    assert m.tendon_frictionloss.max() > 0.005
+    idx = arm_index(m)
+    servo = replace(_loaded(0.05).joint("elbow_flex"), load_friction=0.0)
+    for j in range(6):  # as a fit or the bench writes a servo
+        write_servo(m, int(idx.actuator[j]), int(idx.dof[j]), servo)
+    assert active_load_friction(m) is None and not m.tendon_frictionloss.any()
+    ref = copy.copy(load_model())
+    for j in range(6):
+        write_servo(ref, int(idx.actuator[j]), int(idx.dof[j]), servo)
+    d, d0 = _started(m), _started(ref)
     advance_unobserved(m, d, None, 600)
-    advance_unobserved(plain, d0, None, 600)
+    advance_unobserved(ref, d0, None, 600)
     assert np.allclose(d.qpos, d0.qpos, atol=1e-12)
 
 
@@ -144,3 +152,27 @@ def test_a_loaded_servo_holds_a_goal_change_that_moves_a_servo_without_it(k, hol
         assert moved < 0.02
     else:
         assert moved > 0.3
+
+
+def test_a_diverged_loaded_model_is_left_with_a_finite_friction():
+    """The divergence check puts the last good state back: the load's share (kept beside the
+    state, in userdata) is that state's, so the model steps on from it as from any other."""
+    m = copy.copy(load_model(arm=_loaded(0.057)))
+    found = load_friction(m)
+    m.actuator_gainprm[:, 0] = 1e9  # absurd gains: the explicit integrator blows up
+    m.actuator_biasprm[:, 1] = -1e9
+    m.actuator_forcerange[:] = [-1e12, 1e12]
+    for fast in (True, False):
+        d = _started(m)
+        d.ctrl[:6] = 0.0
+        with pytest.raises(SimulationDivergedError, match="diverged"):
+            if fast:
+                advance_unobserved(m, d, None, 500)
+            else:
+                step_block(m, d, np.repeat(d.ctrl[None], 500, axis=0))
+        assert np.isfinite(d.qpos).all() and d.time < 500 * m.opt.timestep
+        # the share of the state it is left in (not of the block's diverged end)
+        share = 0.057 * np.abs(d.actuator_force[found.actuators])
+        assert np.isfinite(share).all()
+        assert np.allclose(d.userdata[found.slots], share)
+        assert np.allclose(m.tendon_frictionloss[found.tendons], share)

@@ -64,7 +64,7 @@ FD_STEPS = (0.3, 0.03)
 arm's friction makes its error rough at small scales, and a narrow slope leads the solver into a
 false valley: a calibration offset traded for stiffness), then a narrow one to settle."""
 
-LOAD_FRICTION_GRID = (0.0, 0.02, 0.04, 0.06, 0.09, 0.13)
+LOAD_FRICTION_GRID = (0.0, 0.02, 0.04, 0.06, 0.09, 0.13, 0.2, 0.3, 0.4)
 """The ``load_friction`` values (one for every fitted joint) tried before the solver starts, as
 the delay is: from a start without it, the solver alone stays near 0 (a fit of a synthetic arm
 with 0.057 found 0.005-0.02 and missed its calibration offsets by up to 3°)."""
@@ -234,7 +234,7 @@ def fit(
         z0 = zs[int(np.argmin([float(np.mean(np.abs(p - real)[used])) for p in preds]))]
     cols = [i for i, (_, n) in enumerate(keys) if n == "load_friction"]
     if cols:  # the load's friction next, one value for every joint on a grid: out of 0's valley
-        zs = []
+        zs = [z0]  # the start's own values are a candidate too (sts3215-load: 0.38)
         for k in LOAD_FRICTION_GRID:
             z = z0.copy()
             z[cols] = np.clip(k / scale[cols], lo[cols] + 1e-9, hi[cols] - 1e-9)

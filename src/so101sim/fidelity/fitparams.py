@@ -39,7 +39,7 @@ BOUNDS = {
     "viscous": (0.0, 10.0),
     "frictionloss": (0.0, 3.0),
     "drive_frictionloss": (0.0, 3.0),
-    "load_friction": (0.0, 0.3),
+    "load_friction": (0.0, 0.5),
     "armature": (1e-4, 0.5),
     "offset": (-0.2, 0.2),
     "delay_s": (0.0, MAX_DELAY_S),

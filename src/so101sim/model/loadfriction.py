@@ -5,8 +5,9 @@ MuJoCo has no friction that depends on a load, so the model carries it in parts,
 with ``MjSpec`` (:func:`add_load_friction`) when a profile gives a joint a ``load_friction``
 above 0: a fixed tendon on the joint (``so101sim_load_friction_<joint>``) whose ``frictionloss``
 is the load's share, a custom numeric of the same name holding the coefficient and where, in
-``MjData.userdata``, the share in force is kept (so it is part of the data's state, as the
-joint's pose is, and a model may serve several datas one after another). The joint keeps its
+``MjData.userdata``, the share in force is kept (so it goes with the data, and a model may
+serve several datas one after another; ``userdata`` is not in a FULLPHYSICS state, so the
+kernel keeps it beside the states it saves and restores). The joint keeps its
 own ``frictionloss`` (anything that scales it, randomisation or the preflight's variants, still
 acts on it). The stepping kernel (:mod:`so101sim.sim.stepping`) sets each share from the
 servo's last torque every :func:`update_steps` physics steps (:data:`UPDATE_PERIOD_S`, at
@@ -149,12 +150,16 @@ def write_load_friction(m: mujoco.MjModel, dof: int, k: float) -> None:
     where = np.flatnonzero(found.dofs == dof) if found is not None else np.array([], int)
     if not len(where):
         if k > 0:
+            joint = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, int(m.dof_jntid[dof]))
             raise ProfileError(
-                f"load_friction = {k} needs a model compiled with load friction on that joint; "
-                "expected the profile's load_friction (or a fit's) when the model was made"
+                f"load_friction = {k} needs a model compiled with load friction on joint "
+                f"{joint!r}; expected the profile's load_friction (or a fit's) when the model "
+                "was made"
             )
         return
     m.numeric_data[found.numerics[where[0]]] = k
+    if k == 0:  # a joint without it steps unset: its share must not outlive it
+        m.tendon_frictionloss[found.tendons[where[0]]] = 0.0
 
 
 def step_index(time: float, timestep: float) -> int:

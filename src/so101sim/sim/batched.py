@@ -61,6 +61,7 @@ class _World:
         self.m, self.d = m, d
         self.s0 = np.empty((1, state_size(m)))
         self.warm = np.empty((1, m.nv))
+        self.shares: np.ndarray | None = None  # load friction's shares before the last step
         self.n = 0
         self.ctrl = np.empty((1, 0, m.nu))
 
@@ -71,6 +72,7 @@ class _World:
         if loaded is not None:  # the kernel's loop, the load's friction set as it goes
             t0 = d.time
             mujoco.mj_getState(m, d, self.s0[0], _STATE)
+            self.shares = d.userdata.copy()  # the friction's share: not in the saved state
             step_loaded(m, d, loaded, k)
             return d.time >= t0 + (k - 0.5) * m.opt.timestep
         if self.n != k:
@@ -162,6 +164,8 @@ class WorldStepper:
         finds the last good state and raises."""
         w = self._worlds[i]
         mujoco.mj_setState(w.m, w.d, w.s0[0], _STATE)
+        if w.shares is not None:
+            w.d.userdata[:] = w.shares
         step_block(
             w.m, w.d, np.repeat(w.d.ctrl[None], k, axis=0), advice=f"world {i}: {self.advice}"
         )

@@ -34,7 +34,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout as _rollout
 
-from ..errors import ModelError
+from ..errors import ModelError, SimulationDivergedError
 from ..exitgate import mujoco_call
 from ..model.load import arm_index
 from ..model.loadfriction import LoadFriction, active_load_friction, step_index
@@ -238,7 +238,12 @@ def step_block(
                 states = _step_block(m, d, ctrl_full, s0, None)
             else:
                 states = _step_twin(m, d, twin, ctrl_full, s0, contact_counts, actuator_forces)
-        _check_divergence(m, d, states, s0, _watched_qpos(m), advice)
+        try:
+            _check_divergence(m, d, states, s0, _watched_qpos(m), advice)
+        except SimulationDivergedError:
+            if loaded is not None:  # the share of the last good state (the block's may be NaN)
+                loaded.update(m, d)
+            raise
     return states
 
 
@@ -304,10 +309,13 @@ def advance_unobserved(
             warned = _warnings(d) if at_start else 0
             if loaded is None:
                 mujoco.mj_step(m, d, nstep=k)
-            else:
+            else:  # its friction's share is in userdata, not in the saved state
+                shares = d.userdata.copy()
                 step_loaded(m, d, loaded, k)
         if d.time < t0 + (k - 0.5) * dt or (at_start and _warnings(d) != warned):
             mujoco.mj_setState(m, d, s0, _STATE_SPEC)
+            if loaded is not None:
+                d.userdata[:] = shares
             step_block(m, d, np.repeat(d.ctrl[None], k, axis=0), advice=advice)
         done += k
     return n
