@@ -35,10 +35,10 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
 # alternate so that workers do not all wait on the same thing at once. A module missing from
 # this list only runs later; nothing depends on the order.
 HEAVY_FIRST = (
+    "fidelity/test_fidelity_load_friction.py",  # 205 s on one core (2026-11-29): the longest
     "studio/test_studio_page.py",
     "fidelity/test_fidelity_calibration.py",
     "envs/test_distributed.py",
-    "fidelity/test_fidelity_load_friction.py",
     "studio/test_studio_compare.py",
     "viewer/test_viewer.py",
     "fidelity/test_fidelity_fit.py",

@@ -2,8 +2,9 @@
 BAM's authors fitted for this servo family).
 
 Fitted with ``load_friction`` (``so101sim fit --load-friction``) on an arm with the profile's
-``load_friction``, the joints that carry the arm's weight get it back within two standard
-errors and a held-out episode is predicted twice as well as by the same fit without it. On an
+``load_friction`` read through a miscalibrated range-mode follower with its gripper blocked on
+an object, the joints that carry the arm's weight get it back, and every joint its calibration,
+within two standard errors, and a held-out episode is predicted within 0.5°. On an
 arm whose friction follows the torque at every physics step (the profile's is set every 10 ms:
 not an arm the fit can be exactly), fitted without it, through a miscalibrated range-mode
 follower with its gripper blocked on an object, ``fit`` still predicts a held-out episode within
@@ -31,23 +32,29 @@ CARRYING = ("shoulder_lift", "elbow_flex", "wrist_flex")  # the joints the arm's
 
 
 @pytest.mark.slow
-def test_fit_recovers_load_dependent_friction_where_the_servos_carry_the_arm(tmp_path):
+def test_fit_recovers_load_friction_and_the_calibration_of_a_range_mode_arm(tmp_path):
+    """The hidden arm: stiffer, softer and later servos than sts3215, the profile's
+    load_friction, a miscalibrated range-mode follower, its gripper blocked on an object."""
     loaded = record(true_arm(), [11, 12, 13, 14], 4.0, LOAD_FRICTION, every_step=False)
-    root = write_lerobot(tmp_path / "ds", as_read(loaded, {}, blocked=(1.0, 2.5)))
+    eps = as_read(loaded, TRUE_CALIBRATION, blocked=(1.0, 2.5))
+    root = write_lerobot(tmp_path / "ds", eps, transform=range_mode())
     res = fit([root], arm="sts3215", names=("kp_per_p", "damping", "load_friction"),
-              joints=JOINT_NAMES[:5], holdout=[3], max_evaluations=30, units="degrees")  # fmt: skip
+              joints=JOINT_NAMES[:5], holdout=[3], max_evaluations=30)  # fmt: skip
     held, default = res.heldout_error, res.default_heldout_error
     assert held is not None and default is not None
-    # the same fit without load_friction: 0.27° (measured; docs/fidelity.md)
-    assert body_mean(held) < 0.2 and body_mean(held) < 0.1 * body_mean(default)
-    for joint in CARRYING:
+    assert body_mean(held) < 0.5 and all(held[n] < 0.6 for n in JOINT_NAMES[:5])
+    assert body_mean(held) < 0.1 * body_mean(default) and not res.worse_than_default
+    assert res.gripper_blocked_frames > 60
+    for joint in CARRYING:  # the joints the arm's weight loads: the friction is seen there
         got, se = res.values[joint]["load_friction"], res.stderr[joint]["load_friction"]
-        assert got > 0.02 and abs(got - LOAD_FRICTION) <= 2 * se, joint
-    shoulder = true_arm().joint("shoulder_lift", scaled=False).kp_per_p
-    assert abs(res.values["shoulder_lift"]["kp_per_p"] - shoulder) < 0.15
-    assert (
-        res.profile.joint("elbow_flex").load_friction == res.values["elbow_flex"]["load_friction"]
-    )
+        assert abs(got - LOAD_FRICTION) <= 2 * se, joint
+    assert np.mean([res.values[j]["load_friction"] for j in CARRYING]) > 0.03  # not lost
+    for joint in JOINTS:
+        got, se, true = res.values[joint], res.stderr[joint], TRUE_CALIBRATION[joint]
+        assert abs(got["cal_scale"] - true["scale"]) <= 2 * se["cal_scale"], joint
+        assert abs(got["cal_offset"] - true["offset"]) <= 2 * se["cal_offset"], joint
+    elbow = res.profile.joint("elbow_flex")  # what the fit writes: the value it found
+    assert elbow.load_friction == res.values["elbow_flex"]["load_friction"]
 
 
 @pytest.mark.slow
