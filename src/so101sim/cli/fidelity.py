@@ -249,7 +249,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
         episodes = sorted(set(episodes) | set(holdout))
     if args.load_friction and args.calibration_only:
         raise SettingError(
-            "--load-friction fits a servo field and --calibration-only none; expected one of them"
+            "--load-friction and --calibration-only cannot be combined (--calibration-only fits "
+            "no servo field); expected one of them"
         )
     names = {"names": (*FIT_NAMES, "load_friction")} if args.load_friction else {}
     result = fit(
