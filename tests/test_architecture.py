@@ -347,8 +347,9 @@ def test_the_public_api_check_refuses_internals(line):
 
 # The stepping kernel's modules: the only ones that may call MuJoCo's stepping functions
 # (docs/architecture.md: "nothing else in so101sim calls mj_step or mujoco.rollout").
-KERNEL = {"sim.stepping", "sim.batch", "sim.batched", "sim.loaded"}  # batched: make_vec's worlds
-# (issue 33); loaded: the steps of a model with load-dependent friction (issue 32)
+# batched: make_vec's worlds (issue 33); loaded: the steps of a model with load-dependent
+# friction (issue 32); blocks: the rows of one block of step_block
+KERNEL = {"sim.stepping", "sim.blocks", "sim.batch", "sim.batched", "sim.loaded"}
 _STEP_NAMES = {"mj_step", "mj_step1", "mj_step2", "rollout", "Rollout"}
 
 
