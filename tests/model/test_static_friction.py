@@ -109,3 +109,15 @@ def test_a_profile_that_extends_a_shipped_one_needs_only_what_differs(tmp_path):
     )
     with pytest.raises(ProfileError, match="static_friction"):
         profile_from_toml('extends = "sts3215"\nstatic_friction = 1\n')
+
+
+def test_an_unnamed_profile_that_extends_one_is_named_after_its_file_in_every_output(tmp_path):
+    from so101sim.model.build import servo_model
+
+    path = tmp_path / "my_arm.toml"
+    path.write_text('extends = "sts3215"\n[joints.elbow_flex]\nkp_per_p = 1.2\n')
+    prof = load_profile(path)
+    assert prof.name == "my_arm"
+    assert prof.description.startswith("sts3215 changed by my_arm.toml")
+    words = servo_model(load_model(arm=path))
+    assert words.startswith("my_arm (sts3215 changed by my_arm.toml"), words

@@ -95,10 +95,12 @@ def _from_file(path: Path, seen: set[str]) -> ArmProfile:
             f"arm profile {str(path)!r} is not valid TOML ({exc}); expected the format of "
             "so101sim/data/arms/sts3215.toml"
         ) from exc
-    return _from_dict(raw, str(path), seen | {str(path.resolve())})
+    return _from_dict(raw, str(path), seen | {str(path.resolve())}, file=path)
 
 
-def _from_dict(raw: dict[str, Any], where: str, seen: set[str]) -> ArmProfile:
+def _from_dict(
+    raw: dict[str, Any], where: str, seen: set[str], file: Path | None = None
+) -> ArmProfile:
     top = {"name", "description", "extends", "supply_v", "measured_at_v", "scale_with_supply",
            "static_friction"}  # fmt: skip
     unknown = set(raw) - top - {"servo", "joints", "uncertainty", "calibration"}
@@ -133,8 +135,14 @@ def _from_dict(raw: dict[str, Any], where: str, seen: set[str]) -> ArmProfile:
         if not isinstance(table, dict):
             raise ProfileError(f"{where}: joints.{name} must be a table")
         joints.setdefault(name, {}).update(_check_params(table, f"joints.{name}"))
-    name = raw.get("name", base.name if base else Path(where).stem)
-    desc = raw.get("description", base.description if base else "")
+    # A file that extends a profile without naming itself is named after the file, not the
+    # parent: its numbers are not the parent's, and every output names the servo model.
+    if file is not None:  # named after the file, even when it extends another profile
+        name = raw.get("name", file.stem)
+    else:  # TOML text (a job's profile, written whole by profile_toml)
+        name = raw.get("name", base.name if base else Path(where).stem)
+    changed = f"{base.name} changed by {file.name}: " if base and file is not None else ""
+    desc = raw.get("description", changed + base.description if base else "")
     scale = raw.get("scale_with_supply", base.scale_with_supply if base else True)
     hold = raw.get("static_friction", base.static_friction if base else False)
     if not isinstance(name, str) or not isinstance(desc, str) or not isinstance(scale, bool):
