@@ -149,8 +149,24 @@ def test_fit_refuses_a_profile_worse_than_the_default_on_held_out_episodes(tmp_p
     assert main(argv) == 1  # one step from the vendored actuator: far from the real servo
     _, err = capsys.readouterr()
     assert "REFUSED" in err and "WORSE than the default" in err and not out.exists()
+    assert "more --iterations (1 now" in err  # what may help, with what this fit used
     assert main([*argv, "--force"]) == 0
     assert out.exists() and "worse than the default" in capsys.readouterr().err
+
+
+def test_a_refused_load_friction_fit_suggests_a_start_with_load_friction():
+    from argparse import Namespace
+
+    from so101sim.cli.fidelity import _refusal_hint
+
+    hint = _refusal_hint(Namespace(iterations=30, load_friction=True, arm=None))
+    assert "--arm sts3215-load" in hint and "--iterations" not in hint
+    assert "sts3215-load" not in _refusal_hint(
+        Namespace(iterations=30, load_friction=True, arm="sts3215-load")
+    )
+    assert "sts3215-load" not in _refusal_hint(
+        Namespace(iterations=30, load_friction=False, arm=None)
+    )
 
 
 def test_fit_calibration_only_keeps_the_servos_and_needs_a_guessed_calibration(tmp_path, capsys):

@@ -291,7 +291,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
             f"{_eps(result.heldout_episodes)} WORSE than the default profile "
             f"({body_mean(result.heldout_error or {}):.2f} deg against "
             f"{body_mean(result.default_heldout_error or {}):.2f}, body joints); {out} was NOT "
-            "written (more or more varied episodes may help; --force writes it anyway)",
+            f"written ({_refusal_hint(args)}; --force writes it anyway)",
             file=sys.stderr,
         )
         return 1
@@ -306,6 +306,24 @@ def cmd_fit(args: argparse.Namespace) -> int:
     write_atomically(out, write, "profile", force=args.force)
     say(f"wrote {out} (use it with --arm {out})")
     return 0
+
+
+def _refusal_hint(args: argparse.Namespace) -> str:
+    """What may give a fit that the held-out episodes accept, for the refusal's message."""
+    from ..model.arm import load_profile
+    from ..units import JOINT_NAMES
+
+    hints = ["more or more varied episodes may help"]
+    if args.iterations < 30:
+        hints.append(f"so may more --iterations ({args.iterations} now, 30 by default)")
+    if args.load_friction:
+        start = load_profile(args.arm)
+        if all(start.joint(j, scaled=False).load_friction == 0 for j in JOINT_NAMES):
+            hints.append(
+                "so may starting from a profile with load friction: --arm sts3215-load (the "
+                "servo bench's fit with it)"
+            )
+    return "; ".join(hints)
 
 
 def _only_calibration(only: bool) -> dict:
