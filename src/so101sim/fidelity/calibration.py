@@ -113,6 +113,12 @@ def lerobot_calibration_path(robot_id: str) -> Path:
     )
 
 
+GUESSED_CALIBRATION = (
+    "the body joints look range-normalised (-100..100) and no --calibration was given"
+)
+"""How a warning about a range-mode recording's guessed calibration begins."""
+
+
 def to_arm_units(
     act: np.ndarray,
     obs: np.ndarray,
@@ -151,7 +157,7 @@ def to_arm_units(
     else:
         scale, offset = range_guess()
         warnings.append(
-            "the body joints look range-normalised (-100..100) and no --calibration was given: "
+            f"{GUESSED_CALIBRATION}: "
             "mapped with a typical SO-101's calibration (approximate, a few degrees per joint; "
             "give LeRobot's calibration JSON (--calibration or --robot-id) for exact degrees, or "
             "let `so101sim fit` estimate each joint's offset and scale)"

@@ -23,7 +23,13 @@ from ..model.index import arm_units
 from ..model.load import load_model
 from ..sim.simulation import Simulation
 from ..units import JOINT_NAMES
-from .calibration import applied_calibration, calibration_maps, from_log, to_log
+from .calibration import (
+    GUESSED_CALIBRATION,
+    applied_calibration,
+    calibration_maps,
+    from_log,
+    to_log,
+)
 from .logs import ArmLog, Episode, read_log
 from .stops import stop_limits, with_stops
 from .windows import Window, still_frames, with_stall, worst_windows
@@ -194,8 +200,12 @@ def compare(
             "the profile's [calibration] is not used: this recording's degrees are exact "
             "(a calibration JSON or degrees), taken as given"
         )
-    elif cal:
-        warnings.append("each body joint's reading mapped with the profile's [calibration]")
+    elif cal:  # the profile's calibration, not the typical one, maps this recording
+        warnings = [w for w in warnings if not w.startswith(GUESSED_CALIBRATION)]
+        warnings.append(
+            f"{GUESSED_CALIBRATION}: each body joint's reading mapped with the profile's "
+            "[calibration] (as `so101sim fit` estimated it)"
+        )
     real, simd, cmd, traces, lags, still, used, per_ep = [], [], [], [], [], [], [], []
     for ep in data.episodes:
         command, blocked = with_stall(ep.command, ep.measured, ep.times)
