@@ -310,8 +310,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
 def _refusal_hint(args: argparse.Namespace) -> str:
     """What may give a fit that the held-out episodes accept, for the refusal's message."""
-    from ..model.arm import load_profile
-    from ..units import JOINT_NAMES
+    from ..model.arm import load_profile  # start-up: the CLI imports the library when it runs
+    from ..units import JOINT_NAMES  # start-up, as above
 
     hints = ["more or more varied episodes may help"]
     if args.iterations < 30:
