@@ -121,3 +121,10 @@ def test_an_unnamed_profile_that_extends_one_is_named_after_its_file_in_every_ou
     assert prof.description.startswith("sts3215 changed by my_arm.toml")
     words = servo_model(load_model(arm=path))
     assert words.startswith("my_arm (sts3215 changed by my_arm.toml"), words
+    # one that adds only a [calibration] runs sts3215's servos: it keeps that name, and the
+    # default model (the same model) is still named sts3215 after it was loaded
+    cal = tmp_path / "my_cal.toml"
+    cal.write_text('extends = "sts3215"\n[calibration.elbow_flex]\noffset = 2.0\n')
+    assert load_profile(cal).name == "sts3215" and load_profile(cal).calibration
+    load_model(arm=cal)
+    assert servo_model(load_model()).startswith("sts3215 ("), servo_model(load_model())

@@ -200,11 +200,19 @@ def compare(
             "the profile's [calibration] is not used: this recording's degrees are exact "
             "(a calibration JSON or degrees), taken as given"
         )
-    elif cal:  # the profile's calibration, not the typical one, maps this recording
+    elif cal:  # the typical mapping, corrected by the profile's calibration: one warning
         warnings = [w for w in warnings if not w.startswith(GUESSED_CALIBRATION)]
+        named = [j for j in JOINT_NAMES[:5] if j in cal]
+        rest = [j for j in JOINT_NAMES[:5] if j not in cal]
         warnings.append(
-            f"{GUESSED_CALIBRATION}: each body joint's reading mapped with the profile's "
-            "[calibration] (as `so101sim fit` estimated it)"
+            f"{GUESSED_CALIBRATION}: mapped with a typical SO-101's calibration, corrected by "
+            f"the profile's [calibration] on "
+            + (
+                "every body joint"
+                if not rest
+                else f"{', '.join(named)}; {', '.join(rest)} approximate (a few degrees: "
+                "give LeRobot's calibration JSON, or fit their calibration too)"
+            )
         )
     real, simd, cmd, traces, lags, still, used, per_ep = [], [], [], [], [], [], [], []
     for ep in data.episodes:

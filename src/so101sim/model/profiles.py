@@ -135,14 +135,8 @@ def _from_dict(
         if not isinstance(table, dict):
             raise ProfileError(f"{where}: joints.{name} must be a table")
         joints.setdefault(name, {}).update(_check_params(table, f"joints.{name}"))
-    # A file that extends a profile without naming itself is named after the file, not the
-    # parent: its numbers are not the parent's, and every output names the servo model.
-    if file is not None:  # named after the file, even when it extends another profile
-        name = raw.get("name", file.stem)
-    else:  # TOML text (a job's profile, written whole by profile_toml)
-        name = raw.get("name", base.name if base else Path(where).stem)
-    changed = f"{base.name} changed by {file.name}: " if base and file is not None else ""
-    desc = raw.get("description", changed + base.description if base else "")
+    name = raw.get("name", base.name if base else Path(where).stem)
+    desc = raw.get("description", base.description if base else "")
     scale = raw.get("scale_with_supply", base.scale_with_supply if base else True)
     hold = raw.get("static_friction", base.static_friction if base else False)
     if not isinstance(name, str) or not isinstance(desc, str) or not isinstance(scale, bool):
@@ -165,12 +159,21 @@ def _from_dict(
                 f'{", ".join(REQUIRED_FIELDS)}, or extends = "{PROFILE_DEFAULT}" to start from '
                 "a shipped profile and change only what differs"
             )
-    return ArmProfile(
+    prof = ArmProfile(
         name=name, description=desc, supply_v=supply, measured_at_v=measured,
         scale_with_supply=scale, servo=servo, joints=joints, source=where,
         uncertainty=uncertainty, static_friction=hold,
         calibration=_check_calibration(raw.get("calibration", {}), where),
     )  # fmt: skip
+    # A file that extends a profile, changes its servos and does not name itself is named after
+    # the file: every output's "servo model:" line names it, not the parent. One that changes
+    # only [calibration] or [uncertainty] builds the parent's model, and keeps its name.
+    renamed = base is not None and file is not None and "name" not in raw
+    if renamed and _values_toml(prof) != _values_toml(base):
+        changed = f"{base.name} changed by {file.name}"
+        about = f"{changed}: {base.description}" if base.description else changed
+        prof = replace(prof, name=file.stem, description=raw.get("description", about))
+    return prof
 
 
 def _check_calibration(table: object, where: str) -> dict[str, dict[str, float]]:
