@@ -17,6 +17,10 @@ from .studio import add_web_options
 SubParsers = argparse._SubParsersAction
 
 
+DEFAULT_ITERATIONS = 30
+"""`so101sim fit --iterations` when not given: solver evaluations at most."""
+
+
 def add_parsers(sub: SubParsers) -> None:
     """Add ``compare`` and ``fit`` to the CLI's subcommands."""
     p = sub.add_parser(
@@ -65,7 +69,10 @@ def add_parsers(sub: SubParsers) -> None:
         "leaves them out: --episodes 0-1 --holdout 2-3 fits on 0-1 and predicts 2-3",
     )
     p.add_argument(
-        "--iterations", type=int, default=30, help="solver evaluations at most (default 30)"
+        "--iterations",
+        type=int,
+        default=DEFAULT_ITERATIONS,
+        help=f"solver evaluations at most (default {DEFAULT_ITERATIONS})",
     )
     p.add_argument(
         "--calibration-only",
@@ -314,8 +321,10 @@ def _refusal_hint(args: argparse.Namespace) -> str:
     from ..units import JOINT_NAMES  # start-up, as above
 
     hints = ["more or more varied episodes may help"]
-    if args.iterations < 30:
-        hints.append(f"so may more --iterations ({args.iterations} now, 30 by default)")
+    if args.iterations < DEFAULT_ITERATIONS:
+        hints.append(
+            f"so may more --iterations ({args.iterations} now, {DEFAULT_ITERATIONS} by default)"
+        )
     if args.load_friction:
         start = load_profile(args.arm)
         if all(start.joint(j, scaled=False).load_friction == 0 for j in JOINT_NAMES):
