@@ -528,6 +528,32 @@ def test_the_physics_never_waits_for_the_viewers_drawing(monkeypatch):
     assert physics_threads() == []
 
 
+def test_physics_that_falls_behind_real_time_is_said_once(monkeypatch, caplog):
+    import so101sim.robot.threads as threads
+
+    calls = [0]
+
+    def jumping_clock() -> float:  # the wall clock jumps 2 s ahead once: a stalled machine
+        calls[0] += 1
+        return time.perf_counter() + (2.0 if calls[0] > 20 else 0.0)
+
+    real_pacer = threads.Pacer
+
+    def pacer(speed, **kw):
+        return real_pacer(speed, clock=jumping_clock, **kw)
+
+    monkeypatch.setattr(threads, "Pacer", pacer)
+    with caplog.at_level("WARNING", logger="so101sim"), SO101SimFollower() as robot:
+        t0 = robot.time
+        deadline = time.monotonic() + 60  # however busy the machine: wait on simulated time
+        while robot.time - t0 < 0.5 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert robot.time - t0 >= 0.5  # the physics went on after the stall
+    said = [r.getMessage() for r in caplog.records if "fell behind real time" in r.message]
+    assert len(said) == 1, said
+    assert "behind the wall clock" in said[0] and "mode='lockstep'" in said[0]
+
+
 def test_gripper_reading_is_clamped_to_0_100_as_lerobot_does(caplog):
     robot = lockstep()
     sim = robot.simulation

@@ -128,6 +128,46 @@ def test_viewer_is_synced_at_its_rate_and_paced_by_sim_time(sim):
     assert clock.t == pytest.approx(100.0 + 1.0, abs=1e-9)
 
 
+class StallingViewer(FakeViewer):
+    """A viewer whose tenth draw takes 2 s of the (fake) wall clock: the run falls behind."""
+
+    def __init__(self, clock: FakeClock) -> None:
+        super().__init__()
+        self.clock = clock
+
+    def sync(self) -> None:
+        super().sync()
+        if self.syncs == 10:
+            self.clock.t += 2.0
+
+
+def test_a_viewer_that_falls_behind_real_time_is_said_once(sim, caplog):
+    clock = FakeClock()
+    viewer = StallingViewer(clock)
+    sim.observers.append(ViewerObserver(viewer, Pacer(clock=clock, sleep=clock.sleep), fps=50))
+    with caplog.at_level("WARNING", logger="so101sim"):
+        r = sim.move_to(ZERO_POSE, 1.0)
+        sim.hold(1.0)
+    assert r.completed and sim.time == pytest.approx(2.0)  # simulated time is unaffected
+    said = [rec.getMessage() for rec in caplog.records if "fell behind real time" in rec.message]
+    assert len(said) == 1, said
+    # the 2 s stall came in the 10th draw (t = 0.18 s): said at the next draw, due 0.02 s later
+    assert "at 0.20 s of simulated time (1.98 s behind the wall clock)" in said[0]
+    # no warning from an observer told not to (so101sim run says it at the end instead)
+    caplog.clear()
+    quiet = Simulation()
+    clock2 = FakeClock()
+    quiet.observers.append(
+        ViewerObserver(
+            StallingViewer(clock2), Pacer(clock=clock2, sleep=clock2.sleep), 50, warn_lag=False
+        )
+    )
+    with caplog.at_level("WARNING", logger="so101sim"):
+        quiet.hold(0.5)
+    assert quiet.observers[0].pacer.lag_events == 1
+    assert not [rec for rec in caplog.records if "fell behind" in rec.message]
+
+
 def test_closing_the_viewer_ends_the_run(sim):
     viewer = FakeViewer(close_after=10)
     clock = FakeClock()

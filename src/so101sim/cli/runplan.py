@@ -109,7 +109,7 @@ class PreparedRun:
                 handle = stack.enter_context(
                     open_viewer(self.sim.model, self.sim.data, mirror=True, quality="auto")
                 )
-                watching.append(ViewerObserver(handle, self.pacer))
+                watching.append(ViewerObserver(handle, self.pacer, warn_lag=False))  # run says it
             return run_plan(self.sim, self.plan, observers=watching)
 
 

@@ -16,7 +16,8 @@ What differs from the handout, and why:
   2-core machine: ``bench/bench_wallclock_handout.py``) and differs from run to run.
   Here a move of T seconds is exactly ``round(T / timestep)`` physics steps (1000 for 2 s at
   0.002 s): deterministic. With a viewer it is paced to the wall clock in real time by
-  sleeping to absolute deadlines, so it neither races ahead nor drifts.
+  sleeping to absolute deadlines, so it neither races ahead nor drifts; where the machine
+  cannot step and draw that fast, it logs a warning the first time it falls behind.
 * **Holding.** The handout's ``hold_position`` re-reads the measured pose, which sags a little
   under gravity, and commands that, so the arm creeps down the longer it holds. Here it holds
   the last *commanded* target; before any command it holds the pose it finds.

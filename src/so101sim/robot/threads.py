@@ -131,10 +131,23 @@ class RobotThreads:
             t = sim.time
         pacer.wait(t)
         try:
+            warned = False
             while not stop.is_set():
                 pacer.wait(t + block)
                 if stop.is_set():
                     break
+                if pacer.lag_events and not warned:
+                    warned = True
+                    log.warning(
+                        "%s: the physics fell behind real time at %.2f s of simulated time "
+                        "(%.2f s behind the wall clock): this machine cannot step it at %g x "
+                        "real time, so the arm moves slower than the wall clock says (a "
+                        "script's waits end early; mode='lockstep' has no such limit)",
+                        self.label,
+                        t,
+                        pacer.lag_s,
+                        pacer.speed,
+                    )
                 with lock:
                     self.advance(block)
                     t = sim.time

@@ -165,9 +165,12 @@ class ViewerObserver(Observer):
     real time (or ``speed`` times it) wherever the machine can step that fast, with fewer
     frames shown (at least one every :data:`MAX_VIEWER_PERIOD` simulated seconds)."""
 
-    def __init__(self, viewer: Any, pacer: Pacer | None = None, fps: float = 60.0) -> None:
+    def __init__(
+        self, viewer: Any, pacer: Pacer | None = None, fps: float = 60.0, *, warn_lag: bool = True
+    ) -> None:
         self.viewer = viewer
         self.pacer = pacer if pacer is not None else Pacer()
+        self.warn_lag = warn_lag  # say once (a logged warning) when the showing falls behind
         self.period = 1.0 / fps
         self.sync_cost = 0.0  # wall seconds a sync takes (running mean)
         self.syncs = 0
@@ -187,6 +190,17 @@ class ViewerObserver(Observer):
         if not self.viewer.is_running():
             return False
         self.pacer.wait(d.time)
+        if self.warn_lag and self.pacer.lag_events:
+            self.warn_lag = False
+            log.warning(
+                "the viewer fell behind real time at %.2f s of simulated time (%.2f s behind "
+                "the wall clock): this machine cannot step and draw the run at %g x real time, "
+                "so it looks slower than it is; the simulated time and every result are exact "
+                "anyway (a smaller viewer window draws faster)",
+                d.time,
+                self.pacer.lag_s,
+                self.pacer.speed,
+            )
         start = _wall()
         self.viewer.sync()
         cost = _wall() - start
