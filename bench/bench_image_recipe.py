@@ -1,0 +1,194 @@
+"""docs/learning.md's image recipe, end to end, timed: demonstrations, training, evaluation.
+
+    # in the LeRobot venv (Python 3.12, lerobot 0.6.1, so101sim and both plugins installed)
+    python bench/bench_image_recipe.py --work runs/recipe [--seed 1] [--threads 1]
+        [--episodes 100] [--steps 3500] [--eval-episodes 100] [--checkpoints 2000,3000]
+        [--workers 2] [--skip-light] [--json FILE]
+
+Runs the recipe's three commands as a user runs them (``so101sim dataset``, ``lerobot-train``,
+``so101sim eval``, the executables beside this Python), each timed on the wall clock, and
+prints one table: each stage's wall time, the recipe's total against the issue's two-hour
+budget, and the success rates with their 95 % intervals, clean (seeds 2000+) and under
+``--randomize light`` (seeds 3000+), at the last checkpoint and at each of ``--checkpoints``
+(a learning curve, clean only). The load average (1 min) before and after each stage is
+printed beside it: on a shared machine the times depend on it. A dataset or a training
+already in ``--work`` is reused (its time then reads "reused"), so a run cut short goes on
+where it stopped; runs of several training seeds (``--seed``) share one dataset. Nothing is
+asserted: the figures go in docs/learning.md with the date and the machine.
+
+The small sizes (``--episodes 3 --steps 5 --eval-episodes 2``) check that the pipeline runs
+in a few minutes; only the defaults are the recipe.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+RANDOMIZE = "light,textures=0.5,distractors=2"
+BUDGET_S = 2 * 3600.0
+LIMITS = {"episodes": (1, 1000), "steps": (1, 100_000), "eval_episodes": (1, 1000)}
+
+
+def tool(name: str) -> str:
+    """The console script ``name`` of this Python's environment."""
+    path = Path(sys.executable).with_name(name)
+    if not path.exists():
+        found = shutil.which(name)
+        if found is None:
+            raise SystemExit(f"{name} is not installed beside {sys.executable} nor on PATH")
+        return found
+    return str(path)
+
+
+def timed(cmd: list[str], log: Path, env: dict[str, str] | None = None) -> dict:
+    """Run ``cmd`` with its output in ``log``; its wall time and the load around it."""
+    load0 = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    with log.open("w") as out:
+        done = subprocess.run(cmd, stdout=out, stderr=subprocess.STDOUT, env=env, check=False)
+    wall = time.perf_counter() - t0
+    if done.returncode != 0:
+        raise SystemExit(f"{cmd[0]} exited {done.returncode}; see {log}")
+    return {"wall_s": round(wall, 1), "load_before": round(load0, 1),
+            "load_after": round(os.getloadavg()[0], 1)}  # fmt: skip
+
+
+def dataset(args: argparse.Namespace, root: Path) -> dict:
+    if (root / "meta" / "info.json").exists():
+        info = json.loads((root / "meta" / "info.json").read_text())
+        return {"wall_s": None, "episodes": info["total_episodes"], "frames": info["total_frames"]}
+    cmd = [tool("so101sim"), "dataset", "pick_cube", "--episodes", str(args.episodes),
+           "-o", str(root), "--cameras", "front,wrist", "--image-size", "160x120",
+           "--randomize", RANDOMIZE, "--workers", str(args.workers), "--no-progress"]  # fmt: skip
+    result = timed(cmd, root.parent / "dataset.log")
+    info = json.loads((root / "meta" / "info.json").read_text())
+    return result | {"episodes": info["total_episodes"], "frames": info["total_frames"]}
+
+
+def train(args: argparse.Namespace, root: Path, out: Path) -> dict:
+    last = out / "checkpoints" / f"{args.steps:06d}" / "pretrained_model"
+    if last.exists():
+        return {"wall_s": None}
+    if out.exists():
+        raise SystemExit(f"{out} holds an unfinished training; remove it or resume it by hand")
+    cmd = [tool("lerobot-train"), "--dataset.repo_id=local/so101sim", f"--dataset.root={root}",
+           "--policy.type=act", "--policy.device=cpu", "--policy.push_to_hub=false",
+           "--policy.pretrained_backbone_weights=null", "--policy.optimizer_lr_backbone=1e-4",
+           "--policy.dim_model=256", "--policy.dim_feedforward=1024",
+           "--policy.n_encoder_layers=2", "--policy.use_vae=false", "--policy.chunk_size=30",
+           "--policy.n_action_steps=30", "--use_policy_training_preset=false",
+           "--optimizer.type=adamw", "--optimizer.lr=1e-4", "--optimizer.weight_decay=1e-4",
+           "--scheduler.type=cosine_annealing_with_warmup", "--scheduler.num_warmup_steps=100",
+           f"--steps={args.steps}", "--batch_size=8", "--num_workers=0",
+           f"--seed={args.seed}", f"--save_freq={args.save_freq}", f"--output_dir={out}",
+           "--wandb.enable=false"]  # fmt: skip
+    env = {**os.environ, "OMP_NUM_THREADS": str(args.threads)}
+    return timed(cmd, out.parent / f"train_s{args.seed}.log", env)
+
+
+def evaluate(args: argparse.Namespace, policy: Path, out: Path, seed: int, episodes: int,
+             randomize: str | None) -> dict:  # fmt: skip
+    report = out / "eval.json"
+    if report.exists():
+        result: dict = {"wall_s": None}
+    else:
+        cmd = [tool("so101sim"), "eval", str(policy), "--task", "pick_cube",
+               "--episodes", str(episodes), "--seed", str(seed), "--workers", str(args.workers),
+               "--no-progress", "-o", str(out)]  # fmt: skip
+        if randomize:
+            cmd += ["--randomize", randomize]
+        result = timed(cmd, out.parent / f"{out.name}.log")
+    got = json.loads(report.read_text())
+    low, high = got["success_interval_95"]
+    return result | {"successes": got["successes"], "episodes": got["episodes"],
+                     "interval_95": [round(low, 3), round(high, 3)]}  # fmt: skip
+
+
+def bounded(name: str, value: int) -> int:
+    low, high = LIMITS[name]
+    if not low <= value <= high:
+        raise SystemExit(f"--{name.replace('_', '-')} {value}: expected {low} to {high}")
+    return value
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--work", required=True, help="folder for the dataset, runs and logs")
+    p.add_argument("--seed", type=int, default=1, help="the training seed (default 1)")
+    p.add_argument("--threads", type=int, default=1, help="OMP_NUM_THREADS for training (1)")
+    p.add_argument("--episodes", type=int, default=100, help="demonstrations (100)")
+    p.add_argument("--steps", type=int, default=3500, help="training steps (3500)")
+    p.add_argument("--save-freq", type=int, default=500, help="checkpoint every N steps (500)")
+    p.add_argument("--eval-episodes", type=int, default=100, help="episodes per evaluation")
+    p.add_argument("--checkpoints", default="", help="earlier steps to evaluate, e.g. 2000,3000")
+    p.add_argument("--workers", type=int, default=2, help="worker processes (2)")
+    p.add_argument("--skip-light", action="store_true", help="no randomised evaluation")
+    p.add_argument("--json", help="also write the figures to this file")
+    args = p.parse_args()
+    for name in LIMITS:
+        bounded(name, getattr(args, name))
+    curve = sorted({int(s) for s in args.checkpoints.split(",") if s.strip()})
+    bad = [s for s in curve if s % args.save_freq or not 0 < s < args.steps]
+    if bad:
+        raise SystemExit(f"--checkpoints {bad}: expected multiples of --save-freq below --steps")
+
+    work = Path(args.work)
+    work.mkdir(parents=True, exist_ok=True)
+    root, run = work / "data", work / f"train_s{args.seed}"
+    figures: dict = {"date": time.strftime("%Y-%m-%d %H:%M"), "cores": os.cpu_count()}
+    figures["dataset"] = dataset(args, root)
+    figures["training"] = train(args, root, run)
+
+    def policy(step: int) -> Path:
+        return run / "checkpoints" / f"{step:06d}" / "pretrained_model"
+
+    n = args.eval_episodes
+    figures["clean"] = evaluate(args, policy(args.steps), run / "eval_clean", 2000, n, None)
+    if not args.skip_light:
+        light = run / "eval_light"
+        figures["light"] = evaluate(args, policy(args.steps), light, 3000, n, "light")
+    figures["curve"] = {
+        step: evaluate(args, policy(step), run / f"eval_{step:06d}", 2000, n, None)
+        for step in curve
+    }
+    recipe = [
+        figures[k]["wall_s"] for k in ("dataset", "training", "clean", "light") if k in figures
+    ]
+    figures["recipe_wall_s"] = None if None in recipe else round(sum(recipe), 1)
+
+    def rate(r: dict) -> str:
+        low, high = r["interval_95"]
+        return (f"{r['successes']}/{r['episodes']} = {100 * r['successes'] / r['episodes']:.0f} %"
+                f" (95 % interval {100 * low:.0f}-{100 * high:.0f} %)")  # fmt: skip
+
+    def wall(r: dict) -> str:
+        if r["wall_s"] is None:
+            return "reused"
+        return f"{r['wall_s'] / 60:.1f} min (load {r['load_before']} -> {r['load_after']})"
+
+    d = figures["dataset"]
+    print(f"| stage (training seed {args.seed}) | wall time | figure |")
+    print("| --- | --- | --- |")
+    print(f"| dataset | {wall(d)} | {d['episodes']} episodes, {d['frames']} frames |")
+    print(f"| training, {args.steps} steps | {wall(figures['training'])} | |")
+    print(f"| clean, seeds 2000+ | {wall(figures['clean'])} | {rate(figures['clean'])} |")
+    if "light" in figures:
+        print(f"| light, seeds 3000+ | {wall(figures['light'])} | {rate(figures['light'])} |")
+    for step, r in figures["curve"].items():
+        print(f"| clean at {step} steps | {wall(r)} | {rate(r)} |")
+    if figures["recipe_wall_s"] is not None:
+        share = figures["recipe_wall_s"] / BUDGET_S
+        print(f"recipe: {figures['recipe_wall_s'] / 60:.1f} min, {share:.0%} of the 2 h budget")
+    if args.json:
+        Path(args.json).write_text(json.dumps(figures, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
