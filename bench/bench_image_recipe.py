@@ -9,15 +9,17 @@ Runs the recipe's three commands as a user runs them (``so101sim dataset``, ``le
 ``so101sim eval``, the executables beside this Python), each timed on the wall clock, and
 prints one table: each stage's wall time, the recipe's total against the issue's two-hour
 budget, and the success rates with their 95 % intervals, clean (seeds 2000+) and under
-``--randomize light`` (seeds 3000+), at the last checkpoint and at each of ``--checkpoints``
-(a learning curve, clean only). The load average (1 min) before and after each stage is
-printed beside it: on a shared machine the times depend on it. A dataset or a training
-already in ``--work`` is reused (its time then reads "reused"), so a run cut short goes on
-where it stopped; runs of several training seeds (``--seed``) share one dataset. Nothing is
-asserted: the figures go in docs/learning.md with the date and the machine.
+``--randomize light`` (seeds 3000+), at the last checkpoint and at each of ``--checkpoints`` (a
+learning curve, clean only, ``--eval-episodes`` each; docs/learning.md's curve used 50). The
+load average (1 min) before and after each stage is printed beside it: on a shared machine the
+times depend on it. A dataset, training or evaluation already in ``--work`` with the same
+settings is reused (its time then reads "reused"; one with other settings is refused), so a run
+cut short goes on where it stopped; runs of several training seeds (``--seed``) share one
+dataset. Nothing is asserted: the figures go in docs/learning.md with
+the date and the machine.
 
-The small sizes (``--episodes 3 --steps 5 --eval-episodes 2``) check that the pipeline runs
-in a few minutes; only the defaults are the recipe.
+The small sizes (``--episodes 3 --steps 4 --save-freq 2 --checkpoints 2 --eval-episodes 2``)
+check that the pipeline runs in a few minutes; only the defaults are the recipe.
 """
 
 from __future__ import annotations
@@ -25,7 +27,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -33,17 +34,35 @@ from pathlib import Path
 
 RANDOMIZE = "light,textures=0.5,distractors=2"
 BUDGET_S = 2 * 3600.0
-LIMITS = {"episodes": (1, 1000), "steps": (1, 100_000), "eval_episodes": (1, 1000)}
+LIMITS = {
+    "episodes": (1, 1000),
+    "steps": (1, 100_000),
+    "save_freq": (1, 100_000),
+    "eval_episodes": (1, 1000),
+    "seed": (0, 2**31 - 1),
+    "threads": (1, 256),
+    "workers": (1, 64),
+}
+
+
+def same(what: Path, got: dict, want: dict) -> None:
+    """Refuse to reuse ``what`` when it was made with other settings than these."""
+    differ = [f"{k} {got.get(k)!r} (asked: {v!r})" for k, v in want.items() if got.get(k) != v]
+    if differ:
+        raise SystemExit(
+            f"{what} was made with other settings: {'; '.join(differ)}; expected the same "
+            "settings to reuse it: remove it, or give another --work"
+        )
 
 
 def tool(name: str) -> str:
-    """The console script ``name`` of this Python's environment."""
+    """The console script ``name`` of this Python's environment (the venv LeRobot is in)."""
     path = Path(sys.executable).with_name(name)
     if not path.exists():
-        found = shutil.which(name)
-        if found is None:
-            raise SystemExit(f"{name} is not installed beside {sys.executable} nor on PATH")
-        return found
+        raise SystemExit(
+            f"{name} is not installed beside {sys.executable}; expected this script to run "
+            "with the Python of the venv that has lerobot and so101sim's plugins"
+        )
     return str(path)
 
 
@@ -62,11 +81,15 @@ def timed(cmd: list[str], log: Path, env: dict[str, str] | None = None) -> dict:
 
 def dataset(args: argparse.Namespace, root: Path) -> dict:
     if (root / "meta" / "info.json").exists():
+        made = json.loads((root / "meta" / "so101sim.json").read_text())["settings"]
+        want = {"task": "pick_cube", "episodes": args.episodes, "cameras": ["front", "wrist"],
+                "image_size": [120, 160], "randomize": RANDOMIZE}  # fmt: skip
+        same(root, made, want)
         info = json.loads((root / "meta" / "info.json").read_text())
         return {"wall_s": None, "episodes": info["total_episodes"], "frames": info["total_frames"]}
     cmd = [tool("so101sim"), "dataset", "pick_cube", "--episodes", str(args.episodes),
            "-o", str(root), "--cameras", "front,wrist", "--image-size", "160x120",
-           "--randomize", RANDOMIZE, "--workers", str(args.workers), "--no-progress"]  # fmt: skip
+           "--randomize", RANDOMIZE, "--no-progress"]  # fmt: skip
     result = timed(cmd, root.parent / "dataset.log")
     info = json.loads((root / "meta" / "info.json").read_text())
     return result | {"episodes": info["total_episodes"], "frames": info["total_frames"]}
@@ -74,10 +97,18 @@ def dataset(args: argparse.Namespace, root: Path) -> dict:
 
 def train(args: argparse.Namespace, root: Path, out: Path) -> dict:
     last = out / "checkpoints" / f"{args.steps:06d}" / "pretrained_model"
-    if last.exists():
+    if (last / "model.safetensors").exists() and (last / "train_config.json").exists():
+        made = json.loads((last / "train_config.json").read_text())
+        made |= {"root": made["dataset"]["root"]}
+        same(last, made, {"seed": args.seed, "steps": args.steps, "root": str(root)})
         return {"wall_s": None}
     if out.exists():
-        raise SystemExit(f"{out} holds an unfinished training; remove it or resume it by hand")
+        raise SystemExit(
+            f"{out} holds a training without a finished checkpoint at step {args.steps} (cut "
+            "short, or run with other --steps): remove it, or resume it with lerobot-train "
+            f"--config_path={out}/checkpoints/last/pretrained_model/train_config.json "
+            "--resume=true and run this again"
+        )
     cmd = [tool("lerobot-train"), "--dataset.repo_id=local/so101sim", f"--dataset.root={root}",
            "--policy.type=act", "--policy.device=cpu", "--policy.push_to_hub=false",
            "--policy.pretrained_backbone_weights=null", "--policy.optimizer_lr_backbone=1e-4",
@@ -97,6 +128,10 @@ def evaluate(args: argparse.Namespace, policy: Path, out: Path, seed: int, episo
              randomize: str | None) -> dict:  # fmt: skip
     report = out / "eval.json"
     if report.exists():
+        made = json.loads(report.read_text())
+        made |= {"seed": made["per_episode"][0]["seed"] if made["per_episode"] else None}
+        want = {"episodes": episodes, "seed": seed, "randomize": randomize or "none"}
+        same(report, made, want)
         result: dict = {"wall_s": None}
     else:
         cmd = [tool("so101sim"), "eval", str(policy), "--task", "pick_cube",
@@ -134,7 +169,12 @@ def main() -> None:
     args = p.parse_args()
     for name in LIMITS:
         bounded(name, getattr(args, name))
-    curve = sorted({int(s) for s in args.checkpoints.split(",") if s.strip()})
+    try:
+        curve = sorted({int(s) for s in args.checkpoints.split(",") if s.strip()})
+    except ValueError:
+        raise SystemExit(
+            f"--checkpoints {args.checkpoints}: expected steps, e.g. 2000,3000"
+        ) from None
     bad = [s for s in curve if s % args.save_freq or not 0 < s < args.steps]
     if bad:
         raise SystemExit(f"--checkpoints {bad}: expected multiples of --save-freq below --steps")

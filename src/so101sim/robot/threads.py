@@ -140,9 +140,10 @@ class RobotThreads:
                     warned = True
                     log.warning(
                         "%s: the physics fell behind real time at %.2f s of simulated time "
-                        "(%.2f s behind the wall clock): this machine cannot step it at %g x "
-                        "real time, so the arm moves slower than the wall clock says (a "
-                        "script's waits end early; mode='lockstep' has no such limit)",
+                        "(%.2f s behind the wall clock): this machine, or code holding "
+                        "robot.lock, did not step it at %g x real time, so the arm moves "
+                        "slower than the wall clock says (a time.sleep(x) covers less than x s "
+                        "of simulated time; mode='lockstep' has no such limit)",
                         self.label,
                         t,
                         pacer.lag_s,

@@ -171,6 +171,8 @@ class ViewerObserver(Observer):
         self.viewer = viewer
         self.pacer = pacer if pacer is not None else Pacer()
         self.warn_lag = warn_lag  # say once (a logged warning) when the showing falls behind
+        self._lag0 = (self.pacer.lag_events, self.pacer.lag_s)  # a given pacer's earlier lags
+        self._left: float | None = None  # the pacer's clock when the last frame was shown
         self.period = 1.0 / fps
         self.sync_cost = 0.0  # wall seconds a sync takes (running mean)
         self.syncs = 0
@@ -182,6 +184,12 @@ class ViewerObserver(Observer):
             log.debug("simulated time went back to %.3f s; re-anchoring the viewer", d.time)
             self._next = -math.inf
             self.pacer.reset()
+        elif self._left is not None and self.pacer.clock() - self._left > self.pacer.max_lag:
+            # the script's own time between two runs (input(), a plot, a solver): not a lag
+            log.debug(
+                "%.3f s between two runs; re-anchoring the viewer", self.pacer.clock() - self._left
+            )
+            self.pacer.reset()
 
     def next_time(self) -> float:
         return self._next
@@ -190,7 +198,7 @@ class ViewerObserver(Observer):
         if not self.viewer.is_running():
             return False
         self.pacer.wait(d.time)
-        if self.warn_lag and self.pacer.lag_events:
+        if self.warn_lag and self.pacer.lag_events > self._lag0[0]:
             self.warn_lag = False
             log.warning(
                 "the viewer fell behind real time at %.2f s of simulated time (%.2f s behind "
@@ -198,7 +206,7 @@ class ViewerObserver(Observer):
                 "so it looks slower than it is; the simulated time and every result are exact "
                 "anyway (a smaller viewer window draws faster)",
                 d.time,
-                self.pacer.lag_s,
+                self.pacer.lag_s - self._lag0[1],
                 self.pacer.speed,
             )
         start = _wall()
@@ -209,6 +217,7 @@ class ViewerObserver(Observer):
         period = max(self.period, min(MAX_VIEWER_PERIOD, 2.0 * self.sync_cost * self.pacer.speed))
         self._last = d.time
         self._next = d.time + period - 1e-9
+        self._left = self.pacer.clock()
         return True
 
 
