@@ -8,6 +8,7 @@ Run as a script, the driver does many of each signal and prints the counts::
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import os
 import random
@@ -144,6 +145,15 @@ def _wait_for(condition, timeout: float = 300.0) -> None:
         time.sleep(0.01)
 
 
+def _dump_and_kill(child: subprocess.Popen) -> None:
+    """A hung child: its threads' stacks to its stderr (faulthandler on SIGABRT), then kill."""
+    with contextlib.suppress(OSError, subprocess.TimeoutExpired):
+        child.send_signal(signal.SIGABRT)
+        child.wait(timeout=10)
+    with contextlib.suppress(OSError):
+        child.kill()
+
+
 def interrupt_recordings(
     folder: Path,
     plans: list[tuple[signal.Signals, ...]],
@@ -198,7 +208,9 @@ def interrupt_recordings(
                 if k:
                     time.sleep(rng.uniform(*gap))
                 child.send_signal(sig)
-            watchdog = threading.Timer(hang_s, child.kill)  # a hung command ends the test
+            # a hung command ends the test, its threads' stacks first in the child's stderr
+            # (SIGABRT: faulthandler's dump), then killed
+            watchdog = threading.Timer(hang_s, _dump_and_kill, (child,))
             watchdog.start()
             while not (line := child.stdout.readline()).startswith("EXIT") and line:
                 printed += line
@@ -208,9 +220,10 @@ def interrupt_recordings(
                     status = child.wait(timeout=30)
                 except subprocess.TimeoutExpired:
                     status = None
-                hung = status is None or status == -signal.SIGKILL  # the watchdog's kill
+                # the watchdog's abort (the stacks) or kill
+                hung = status is None or status in (-signal.SIGABRT, -signal.SIGKILL)
                 what = f"hung for {hang_s} s" if hung else f"died (status {status})"
-                stderr = (folder / "child-stderr.txt").read_text()[-3000:]
+                stderr = (folder / "child-stderr.txt").read_text()[-8000:]  # with the stacks
                 raise AssertionError(f"run {i} {plan} {what}:\n{printed}\nstderr:\n{stderr}")
             outcome = Outcome(tuple(s.name for s in plan), int(line.split()[1]), [])
             if outcome.code != 128 + plan[0]:
