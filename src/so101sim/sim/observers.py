@@ -184,11 +184,11 @@ class ViewerObserver(Observer):
             log.debug("simulated time went back to %.3f s; re-anchoring the viewer", d.time)
             self._next = -math.inf
             self.pacer.reset()
-        elif self._left is not None and self.pacer.clock() - self._left > self.pacer.max_lag:
+        elif (
+            self._left is not None and (gap := self.pacer.clock() - self._left) > self.pacer.max_lag
+        ):
             # the script's own time between two runs (input(), a plot, a solver): not a lag
-            log.debug(
-                "%.3f s between two runs; re-anchoring the viewer", self.pacer.clock() - self._left
-            )
+            log.debug("%.3f s between two runs; re-anchoring the viewer", gap)
             self.pacer.reset()
 
     def next_time(self) -> float:
