@@ -363,6 +363,47 @@ def test_a_run_the_viewer_could_not_show_at_real_time_says_so(monkeypatch, capsy
     assert "headless" not in out
 
 
+def test_a_run_the_browser_page_could_not_show_at_real_time_says_so(monkeypatch, capsys):
+    # ``run --web``: the page paces the run with the run's pacer (a stand-in for the studio,
+    # no browser or server needed); its wall clock jumps 0.5 s at every frame it paces
+    import contextlib
+    import math
+
+    from so101sim.cli import runplan
+    from so101sim.cli import studio as cli_studio
+    from so101sim.model import load_model
+    from so101sim.sim.observers import Observer
+    from so101sim.sim.simulation import Pacer
+
+    class _Page(Observer):  # what the studio's observer does with the pacer, minus the page
+        def __init__(self, pacer):
+            self.pacer, self._next = pacer, -math.inf
+
+        def next_time(self):
+            return self._next
+
+        def on_time(self, m, d):
+            self.pacer.wait(d.time)
+            self._next = d.time + 1 / 30 - 1e-9
+            return True
+
+    class _WebRun:
+        model = load_model()
+
+        def observers(self, run):
+            return [_Page(run.pacer)]
+
+    wall = iter(range(10**6))
+    clock = lambda: 0.5 * next(wall)  # noqa: E731
+    monkeypatch.setattr(cli_studio, "web_run", lambda args: contextlib.nullcontext(_WebRun()))
+    monkeypatch.setattr(runplan, "Pacer", lambda speed: Pacer(speed, clock=clock))
+    assert main(["run", "--web"]) == 0
+    out = capsys.readouterr().out
+    assert "return [move" in out  # the run's report, then the note
+    note = out.strip().splitlines()[-1]
+    assert note.startswith("note: the browser page fell behind real time ") and " s in all)" in note
+
+
 def test_a_run_that_keeps_real_time_says_nothing_of_it(monkeypatch, capsys):
     t = [0.0]  # a clock that sleeping moves exactly on: never behind
     sleep = lambda s: t.__setitem__(0, t[0] + s)  # noqa: E731

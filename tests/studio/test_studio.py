@@ -157,6 +157,90 @@ def test_a_live_run_keeps_real_time_at_speed():
         assert studio.timeline.frames[-1].time == pytest.approx(1.0, abs=0.04)
 
 
+class _Clock:
+    """A wall clock that sleeping moves exactly on (never behind), and that a test can jump."""
+
+    def __init__(self):
+        self.t = 100.0
+
+    def __call__(self):
+        return self.t
+
+    def sleep(self, s):
+        self.t += s
+
+
+def test_a_page_that_falls_behind_real_time_is_said_once(caplog):
+    """The page's observer says the first time it falls behind the wall clock (a logged
+    warning with when and by how much), once; the script's own time between two runs, or
+    between two frames of its own loop, is not a lag; ``warn_lag=False`` keeps it quiet."""
+    from so101sim.sim.simulation import Pacer
+    from so101sim.studio.live import StudioViewer
+
+    sim = Simulation()
+    with Studio(sim.model, port=free_port(), controls=False) as studio:
+        clock = _Clock()
+        shown = studio.show
+
+        def stalling_show(*args, **kwargs):  # the 10th frame takes 2 s of the wall clock
+            stalling_show.frames += 1
+            if stalling_show.frames == 10:
+                stalling_show.clock.t += 2.0
+            return shown(*args, **kwargs)
+
+        stalling_show.frames, stalling_show.clock = 0, clock
+        studio.show = stalling_show
+        observer = StudioObserver(studio, Pacer(clock=clock, sleep=clock.sleep))
+        with caplog.at_level("WARNING", logger="so101sim"):
+            sim.hold(1.0, observers=[observer])
+            sim.hold(0.5, observers=[observer])
+        said = [r.getMessage() for r in caplog.records if "fell behind real time" in r.message]
+        assert len(said) == 1, said
+        # the stall came in the 10th frame (t = 0.30 s at 30 frames a second): said at the
+        # next frame, 1/30 s later (to the 2 ms step)
+        assert said[0].startswith("the browser page fell behind real time at 0.3")
+        assert float(said[0].split(" at ")[1].split()[0]) == pytest.approx(0.333, abs=0.01)
+        assert "(1.97 s behind the wall clock)" in said[0]
+        studio.show = shown
+
+        caplog.clear()  # the script's own time between two runs: not a lag
+        paused = Simulation()
+        clock2 = _Clock()
+        observer = StudioObserver(studio, Pacer(clock=clock2, sleep=clock2.sleep))
+        with caplog.at_level("WARNING", logger="so101sim"):
+            paused.hold(0.2, observers=[observer])
+            clock2.t += 3.0
+            paused.hold(0.2, observers=[observer])
+        assert observer.pacer.lag_events == 0
+        # the second hold paced in real time again (from its first frame: to 2 frames)
+        assert clock2.t == pytest.approx(100.0 + 0.2 + 3.0 + 0.2, abs=0.07)
+        # nor a pause in a script's own loop with its viewer (record SCRIPT --web)
+        clock3 = _Clock()
+        viewer = StudioViewer(
+            studio, paused.model, paused.data, Pacer(clock=clock3, sleep=clock3.sleep)
+        )
+        for k in range(20):
+            paused.data.time += 0.02
+            viewer.sync()
+            if k == 9:
+                clock3.t += 3.0  # input() in the loop
+        assert viewer.pacer.lag_events == 0
+        assert not [r for r in caplog.records if "fell behind" in r.message]
+
+        # told not to (so101sim run --web says it at the end instead), the same stall
+        quiet_clock = _Clock()
+        stalling_show.frames, stalling_show.clock = 0, quiet_clock
+        studio.show = stalling_show
+        quiet = StudioObserver(
+            studio, Pacer(clock=quiet_clock, sleep=quiet_clock.sleep), warn_lag=False
+        )
+        with caplog.at_level("WARNING", logger="so101sim"):
+            Simulation().hold(1.0, observers=[quiet])
+        studio.show = shown
+        assert quiet.pacer.lag_events == 1
+        assert not [r for r in caplog.records if "fell behind" in r.message]
+
+
 def test_record_web_shows_the_students_script_live_at_real_time(tmp_path):
     """record SCRIPT --web: the script's launch_passive viewer draws in the studio, paced to
     the wall clock (the handout's wall-clock loop then runs about its simulated seconds)."""

@@ -81,9 +81,10 @@ def _run(
                 observers=web.observers(run) if web else (),
             )
         print_run(result)
-        if run.viewer.use and run.pacer.lag_events:
+        shown_in = "the viewer" if run.viewer.use else "the browser page" if web else None
+        if shown_in and run.pacer.lag_events:
             say(
-                f"note: the viewer fell behind real time {run.pacer.lag_events} times over the "
+                f"note: {shown_in} fell behind real time {run.pacer.lag_events} times over the "
                 f"run ({run.pacer.lag_s:.1f} s in all): this machine could not step and draw it "
                 "faster; the simulated time and every figure above are exact anyway (--speed 0.5 "
                 "shows it slower and steadier)"

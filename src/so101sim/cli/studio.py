@@ -217,7 +217,7 @@ class WebRun:
         from ..studio.live import StudioObserver
 
         self.studio = _studio(run.sim.model, self.args)
-        return [StudioObserver(self.studio, run.pacer)]
+        return [StudioObserver(self.studio, run.pacer, warn_lag=False)]  # the run says it
 
     def close(self, finished: bool) -> None:
         if self.studio is None:

@@ -150,6 +150,49 @@ class Observer:
 
 _wall = time.perf_counter  # the real clock, even while a script's clock follows simulated time
 
+
+class PacedShowing:
+    """What every display that paces a run to the wall clock shares (a desktop viewer, the
+    studio's page): the time a script spends between two runs (``input()``, a plot, a solver)
+    is not a lag (:meth:`started` re-anchors the pacer), and the first time the showing falls
+    behind real time is said once, as a logged warning naming ``shown_in`` (:meth:`waited`).
+    Call :meth:`started` at a run's start, :meth:`waited` after each ``pacer.wait`` and
+    :meth:`shown` once the frame is shown. A given pacer's earlier lags are not counted."""
+
+    def __init__(self, pacer: Pacer, shown_in: str, *, warn_lag: bool = True, hint: str = ""):
+        self.pacer = pacer
+        self.shown_in = shown_in
+        self.warn_lag = warn_lag
+        self.hint = hint  # what might help, appended to the warning
+        self._lag0 = (pacer.lag_events, pacer.lag_s)
+        self._left: float | None = None  # the pacer's clock when the last frame was shown
+
+    def started(self) -> None:
+        """Before a run of steps: re-anchor after the script's own time between two runs."""
+        if self._left is not None and (gap := self.pacer.clock() - self._left) > self.pacer.max_lag:
+            log.debug("%.3f s between two runs; re-anchoring %s", gap, self.shown_in)
+            self.pacer.reset()
+
+    def waited(self, sim_time: float) -> None:
+        """After the pacer waited for ``sim_time``: say the first lag, once."""
+        if self.warn_lag and self.pacer.lag_events > self._lag0[0]:
+            self.warn_lag = False
+            log.warning(
+                "%s fell behind real time at %.2f s of simulated time (%.2f s behind the wall "
+                "clock): this machine cannot step and draw the run at %g x real time, so it "
+                "looks slower than it is; the simulated time and every result are exact anyway%s",
+                self.shown_in,
+                sim_time,
+                self.pacer.lag_s - self._lag0[1],
+                self.pacer.speed,
+                f" ({self.hint})" if self.hint else "",
+            )
+
+    def shown(self) -> None:
+        """A frame was shown (the time a script takes from here to the next run is its own)."""
+        self._left = self.pacer.clock()
+
+
 MAX_VIEWER_PERIOD = 0.25
 """Simulated seconds between two viewer frames at most, however slowly the viewer draws."""
 
@@ -170,9 +213,10 @@ class ViewerObserver(Observer):
     ) -> None:
         self.viewer = viewer
         self.pacer = pacer if pacer is not None else Pacer()
-        self.warn_lag = warn_lag  # say once (a logged warning) when the showing falls behind
-        self._lag0 = (self.pacer.lag_events, self.pacer.lag_s)  # a given pacer's earlier lags
-        self._left: float | None = None  # the pacer's clock when the last frame was shown
+        # says once (a logged warning) when the showing falls behind
+        self.showing = PacedShowing(
+            self.pacer, "the viewer", warn_lag=warn_lag, hint="a smaller viewer window draws faster"
+        )
         self.period = 1.0 / fps
         self.sync_cost = 0.0  # wall seconds a sync takes (running mean)
         self.syncs = 0
@@ -184,12 +228,8 @@ class ViewerObserver(Observer):
             log.debug("simulated time went back to %.3f s; re-anchoring the viewer", d.time)
             self._next = -math.inf
             self.pacer.reset()
-        elif (
-            self._left is not None and (gap := self.pacer.clock() - self._left) > self.pacer.max_lag
-        ):
-            # the script's own time between two runs (input(), a plot, a solver): not a lag
-            log.debug("%.3f s between two runs; re-anchoring the viewer", gap)
-            self.pacer.reset()
+        else:
+            self.showing.started()
 
     def next_time(self) -> float:
         return self._next
@@ -198,17 +238,7 @@ class ViewerObserver(Observer):
         if not self.viewer.is_running():
             return False
         self.pacer.wait(d.time)
-        if self.warn_lag and self.pacer.lag_events > self._lag0[0]:
-            self.warn_lag = False
-            log.warning(
-                "the viewer fell behind real time at %.2f s of simulated time (%.2f s behind "
-                "the wall clock): this machine cannot step and draw the run at %g x real time, "
-                "so it looks slower than it is; the simulated time and every result are exact "
-                "anyway (a smaller viewer window draws faster)",
-                d.time,
-                self.pacer.lag_s - self._lag0[1],
-                self.pacer.speed,
-            )
+        self.showing.waited(d.time)
         start = _wall()
         self.viewer.sync()
         cost = _wall() - start
@@ -217,7 +247,7 @@ class ViewerObserver(Observer):
         period = max(self.period, min(MAX_VIEWER_PERIOD, 2.0 * self.sync_cost * self.pacer.speed))
         self._last = d.time
         self._next = d.time + period - 1e-9
-        self._left = self.pacer.clock()
+        self.showing.shown()
         return True
 
 
@@ -226,6 +256,7 @@ __all__ = [
     "MAX_VIEWER_PERIOD",
     "MIN_PLAYBACK_SPEED",
     "Observer",
+    "PacedShowing",
     "Pacer",
     "Trace",
     "ViewerObserver",

@@ -19,6 +19,7 @@ from typing import Any
 
 import mujoco
 
+from ..sim.observers import PacedShowing
 from ..sim.simulation import Observer, Pacer, Trace
 from .server import FRAME_RATE, Studio
 
@@ -26,9 +27,18 @@ from .server import FRAME_RATE, Studio
 class StudioObserver(Observer):
     """Shows a run on ``studio``'s page, paced to the wall clock by ``pacer``."""
 
-    def __init__(self, studio: Studio, pacer: Pacer | None = None, fps: float = FRAME_RATE):
+    def __init__(
+        self,
+        studio: Studio,
+        pacer: Pacer | None = None,
+        fps: float = FRAME_RATE,
+        *,
+        warn_lag: bool = True,
+    ):
         self.studio = studio
         self.pacer = pacer if pacer is not None else Pacer()
+        # says once (a logged warning) when the page falls behind the wall clock
+        self.showing = PacedShowing(self.pacer, "the browser page", warn_lag=warn_lag)
         self.studio.speed = self.pacer.speed
         self.period = 1.0 / fps
         self.phase = ""
@@ -39,6 +49,8 @@ class StudioObserver(Observer):
         if d.time < self._last:  # a reset: a new timeline
             self._next = -math.inf
             self.pacer.reset()
+        else:
+            self.showing.started()  # the script's own time between two runs is not a lag
 
     def next_time(self) -> float:
         return self._next
@@ -53,11 +65,13 @@ class StudioObserver(Observer):
         if self.studio.wait_while_paused():
             self.pacer.reset()
         self.pacer.wait(d.time)
+        self.showing.waited(d.time)
         idx = self.studio._index
         commanded = self.studio.units.from_radians(d.ctrl[idx.actuator])
         self.studio.show(d, self.phase, commanded)
         self._last = d.time
         self._next = d.time + self.period - 1e-9
+        self.showing.shown()
         return True
 
 
@@ -84,6 +98,8 @@ class StudioViewer(StudioObserver):
         if d.time + 1e-12 >= self._next or d.time < self._last:
             if d.time < self._last:
                 self.on_start(self.model, d)
+            else:  # a pause in the script's own loop (input(), a plot) is not a lag
+                self.showing.started()
             self.on_time(self.model, d)
 
     def is_running(self) -> bool:
