@@ -96,10 +96,9 @@ class StudioViewer(StudioObserver):
             return
         d = self.data
         if d.time + 1e-12 >= self._next or d.time < self._last:
-            if d.time < self._last:
-                self.on_start(self.model, d)
-            else:  # a pause in the script's own loop (input(), a plot) is not a lag
-                self.showing.started()
+            # a reset starts a new timeline; a pause in the script's own loop (input(), a
+            # plot) is not a lag
+            self.on_start(self.model, d)
             self.on_time(self.model, d)
 
     def is_running(self) -> bool:
