@@ -2,8 +2,8 @@
 
     # in the LeRobot venv (Python 3.12, lerobot 0.6.1, so101sim and both plugins installed)
     python bench/bench_image_recipe.py --work runs/recipe [--seed 1] [--threads 1]
-        [--episodes 100] [--steps 3500] [--eval-episodes 100] [--checkpoints 2000,3000]
-        [--workers 2] [--skip-light] [--json FILE]
+        [--inputs joints+cameras|cameras] [--episodes 100] [--steps 3500]
+        [--eval-episodes 100] [--checkpoints 2000,3000] [--workers 2] [--skip-light] [--json FILE]
 
 Runs the recipe's three commands as a user runs them (``so101sim dataset``, ``lerobot-train``,
 ``so101sim eval``, the executables beside this Python), each timed on the wall clock, and
@@ -33,6 +33,13 @@ import time
 from pathlib import Path
 
 RANDOMIZE = "light,textures=0.5,distractors=2"
+CAMERAS = ("front", "wrist")
+# What the policy reads (``--inputs``): the two cameras alone, or the joint states beside them
+# (LeRobot's default, every feature of the dataset but the action).
+INPUTS = {
+    "cameras": [f"observation.images.{c}" for c in CAMERAS],
+    "joints+cameras": [f"observation.images.{c}" for c in CAMERAS] + ["observation.state"],
+}
 BUDGET_S = 2 * 3600.0
 LIMITS = {
     "episodes": (1, 1000),
@@ -99,8 +106,11 @@ def train(args: argparse.Namespace, root: Path, out: Path) -> dict:
     last = out / "checkpoints" / f"{args.steps:06d}" / "pretrained_model"
     if (last / "model.safetensors").exists() and (last / "train_config.json").exists():
         made = json.loads((last / "train_config.json").read_text())
-        made |= {"root": made["dataset"]["root"]}
-        same(last, made, {"seed": args.seed, "steps": args.steps, "root": str(root)})
+        made |= {"root": made["dataset"]["root"],
+                 "inputs": sorted(made["policy"]["input_features"])}  # fmt: skip
+        want = {"seed": args.seed, "steps": args.steps, "root": str(root),
+                "inputs": sorted(INPUTS[args.inputs])}  # fmt: skip
+        same(last, made, want)
         return {"wall_s": None}
     if out.exists():
         raise SystemExit(
@@ -120,8 +130,12 @@ def train(args: argparse.Namespace, root: Path, out: Path) -> dict:
            f"--steps={args.steps}", "--batch_size=8", "--num_workers=0",
            f"--seed={args.seed}", f"--save_freq={args.save_freq}", f"--output_dir={out}",
            "--wandb.enable=false"]  # fmt: skip
+    if args.inputs == "cameras":
+        visual = {"type": "VISUAL", "shape": [3, 120, 160]}
+        features = {key: visual for key in INPUTS["cameras"]}
+        cmd.append(f"--policy.input_features={json.dumps(features)}")
     env = {**os.environ, "OMP_NUM_THREADS": str(args.threads)}
-    return timed(cmd, out.parent / f"train_s{args.seed}.log", env)
+    return timed(cmd, out.parent / f"{out.name}.log", env)
 
 
 def evaluate(args: argparse.Namespace, policy: Path, out: Path, seed: int, episodes: int,
@@ -157,6 +171,12 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--work", required=True, help="folder for the dataset, runs and logs")
     p.add_argument("--seed", type=int, default=1, help="the training seed (default 1)")
+    p.add_argument(
+        "--inputs",
+        choices=sorted(INPUTS),
+        default="joints+cameras",
+        help="what the policy reads: the cameras and the joints (default) or the cameras alone",
+    )
     p.add_argument("--threads", type=int, default=1, help="OMP_NUM_THREADS for training (1)")
     p.add_argument("--episodes", type=int, default=100, help="demonstrations (100)")
     p.add_argument("--steps", type=int, default=3500, help="training steps (3500)")
@@ -181,8 +201,10 @@ def main() -> None:
 
     work = Path(args.work)
     work.mkdir(parents=True, exist_ok=True)
-    root, run = work / "data", work / f"train_s{args.seed}"
-    figures: dict = {"date": time.strftime("%Y-%m-%d %H:%M"), "cores": os.cpu_count()}
+    only = "" if args.inputs == "joints+cameras" else "_cameras"  # the recipe's own: train_sN
+    root, run = work / "data", work / f"train{only}_s{args.seed}"
+    figures: dict = {"date": time.strftime("%Y-%m-%d %H:%M"), "cores": os.cpu_count(),
+                     "inputs": args.inputs}  # fmt: skip
     figures["dataset"] = dataset(args, root)
     figures["training"] = train(args, root, run)
 
@@ -214,7 +236,7 @@ def main() -> None:
         return f"{r['wall_s'] / 60:.1f} min (load {r['load_before']} -> {r['load_after']})"
 
     d = figures["dataset"]
-    print(f"| stage (training seed {args.seed}) | wall time | figure |")
+    print(f"| stage (training seed {args.seed}, inputs {args.inputs}) | wall time | figure |")
     print("| --- | --- | --- |")
     print(f"| dataset | {wall(d)} | {d['episodes']} episodes, {d['frames']} frames |")
     print(f"| training, {args.steps} steps | {wall(figures['training'])} | |")
