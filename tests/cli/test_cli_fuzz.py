@@ -108,9 +108,10 @@ def _bases(tmp: Path) -> dict[str, list[str]]:
         "compare": ["compare", str(log)],
         "grade": ["grade", str(log)],
         "policy-check": ["policy-check", str(policy), "--robot-config", str(robot)],
-        # without the LeRobot plugins (the core's venv) these two say what to install, exit 2
+        # without the LeRobot plugins (the core's venv) these three say what to install, exit 2
         "dataset": ["dataset", "pick_cube", "--episodes", "1", "-o", str(tmp / "out" / "ds")],
         "eval": ["eval", str(tmp / "policy"), "--episodes", "1"],
+        "pretrain-backbone": ["pretrain-backbone", str(tmp / "ds"), "-o", str(tmp / "out" / "p")],
         # 2 solver evaluations: a fit the values let through ends in a moment, as it does
         "fit": ["fit", str(log), "-o", str(tmp / "out" / "arm.toml"), "--iterations", "2"],
         "hold": ["hold", "--headless", "--duration", "0.01"],

@@ -1,6 +1,8 @@
-"""``so101sim dataset`` and ``so101sim eval``: LeRobot datasets from the scripted experts, and
-policies evaluated at scale. Their work is in the LeRobot plugins (the only code that imports
-LeRobot and torch): ``lerobot_robot_so101sim.dataset`` and ``lerobot_env_so101sim.evaluate``,
+"""``so101sim dataset``, ``so101sim pretrain-backbone`` and ``so101sim eval``: LeRobot datasets
+from the scripted experts, an image ACT's backbone pretrained on one, and policies evaluated
+at scale. Their work is in the LeRobot plugins (the only code that imports LeRobot and torch):
+``lerobot_robot_so101sim.dataset``, ``lerobot_robot_so101sim.pretrain`` and
+``lerobot_env_so101sim.evaluate``,
 imported by name only when the command runs; without the plugin installed the command says
 what to install (one line, exit status 2). Like the rest of :mod:`so101sim.cli`, this module
 only parses and prints.
@@ -23,6 +25,7 @@ SubParsers = Any  # argparse's private _SubParsersAction
 PLUGINS = {
     "dataset": ("lerobot_robot_so101sim", "dataset", "./plugins/lerobot_robot_so101sim"),
     "eval": ("lerobot_env_so101sim", "evaluate", "./plugins/lerobot_env_so101sim"),
+    "pretrain-backbone": ("lerobot_robot_so101sim", "pretrain", "./plugins/lerobot_robot_so101sim"),
 }
 """Each command's plugin: its package, the module with the work, where to install it from."""
 
@@ -167,6 +170,35 @@ def add_learning_commands(sub: SubParsers) -> None:
     p.set_defaults(func=cmd_eval)
 
     p = sub.add_parser(
+        "pretrain-backbone",
+        help="an image ACT whose ResNet-18 has learnt to find the cube, for lerobot-train "
+        "--policy.path (needs the LeRobot plugin)",
+        description=(
+            "Trains the ResNet-18 of an image ACT on DATASET's front and wrist images to tell "
+            "where the cube is (on the table; from the gripper), with the cube's pose that "
+            "so101sim dataset --environment-state recorded as the label, and writes the ACT "
+            "(inputs: joint states and cameras only) to --output, as lerobot-train saves a "
+            "checkpoint, for `lerobot-train --policy.path=OUTPUT ...` to train on from it. "
+            "Needs lerobot_robot_so101sim installed (docs/learning.md)."
+        ),
+    )
+    p.add_argument(
+        "dataset", metavar="DATASET", help="a so101sim dataset folder (--environment-state)"
+    )
+    p.add_argument("-o", "--output", required=True, help="a new folder for the policy")
+    p.add_argument("--steps", type=int, default=500, help="optimiser steps (500)")
+    p.add_argument("--batch-size", type=int, default=32, help="frames a step (32)")
+    p.add_argument("--lr", type=float, default=3e-4, help="peak learning rate, cosine (3e-4)")
+    p.add_argument("--seed", type=int, default=1, help="seed of the weights and batches (1)")
+    p.add_argument("--repo-id", default="local/so101sim", help="the dataset's repo id")
+    p.add_argument("--dim-model", type=int, default=256, help="ACT's width (256)")
+    p.add_argument("--dim-feedforward", type=int, default=1024, help="ACT's MLP width (1024)")
+    p.add_argument("--encoder-layers", type=int, default=2, help="ACT's encoder layers (2)")
+    p.add_argument("--chunk-size", type=int, default=30, help="ACT's action chunk (30)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_pretrain_backbone)
+
+    p = sub.add_parser(
         "policy-check",
         help="will a trained policy run on a real robot's LeRobot config? (one line per mismatch)",
         description=(
@@ -274,6 +306,38 @@ def cmd_eval(args: argparse.Namespace) -> int:
     videos = [o.video for o in report.outcomes if o.video]
     if videos:
         say(f"videos of {len(videos)} failure(s) in {videos[0].rsplit('/', 1)[0]}")
+    return 0
+
+
+def cmd_pretrain_backbone(args: argparse.Namespace) -> int:
+    module = plugin_module("pretrain-backbone")
+    from tqdm import tqdm
+
+    settings = module.PretrainSettings(
+        dataset=args.dataset,
+        output=args.output,
+        repo_id=args.repo_id,
+        steps=args.steps,
+        batch_size=args.batch_size,
+        lr=args.lr,
+        seed=args.seed,
+        dim_model=args.dim_model,
+        dim_feedforward=args.dim_feedforward,
+        n_encoder_layers=args.encoder_layers,
+        chunk_size=args.chunk_size,
+    ).checked()  # every setting before the bar: an error is its only line
+    bar = tqdm(total=args.steps, unit="step", disable=args.no_progress, file=sys.stderr)
+    try:
+        report = module.pretrain_backbone(settings, lambda _: bar.update(1))
+    finally:
+        bar.close()
+    say(
+        f"wrote {report.output} after {report.steps} steps on {report.frames} frames in "
+        f"{report.wall_seconds:.1f} s; held-out error: the cube on the table "
+        f"{report.front_error_mm:.1f} mm (guessing the mean: {report.front_baseline_mm:.1f}), "
+        f"from the gripper {report.wrist_error_mm:.1f} mm ({report.wrist_baseline_mm:.1f})"
+    )
+    say(f"next: lerobot-train --policy.path={report.output} --dataset.root={args.dataset} ...")
     return 0
 
 
