@@ -131,6 +131,7 @@ class PretrainReport:
 def tip_frame_positions(states: np.ndarray, points: np.ndarray) -> np.ndarray:
     """``points`` (world, metres) in the gripper's tip frame for each row of ``states``
     (arm units), in the pick_cube scene."""
+    # the scene's modules only when labels are made (importing the plugin stays light)
     from so101sim.kinematics.core import Kinematics
     from so101sim.scenes import SCENE_PRESETS
     from so101sim.scenes.build import build_scene
@@ -162,6 +163,7 @@ def pretrain_backbone(
     Raises:
         SettingError, OutputPathError: see :meth:`PretrainSettings.checked`.
     """
+    # torch and LeRobot only when a backbone is trained (the CLI's start-up stays light)
     import torch
     import torch.nn.functional as F
     from lerobot.configs import FeatureType, PolicyFeature

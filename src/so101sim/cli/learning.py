@@ -311,6 +311,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 def cmd_pretrain_backbone(args: argparse.Namespace) -> int:
     module = plugin_module("pretrain-backbone")
+    # start-up: the progress bar's module only when a backbone is pretrained
     from tqdm import tqdm
 
     settings = module.PretrainSettings(
