@@ -132,9 +132,8 @@ def tip_frame_positions(states: np.ndarray, points: np.ndarray) -> np.ndarray:
     """``points`` (world, metres) in the gripper's tip frame for each row of ``states``
     (arm units), in the pick_cube scene."""
     # the scene's modules only when labels are made (importing the plugin stays light)
-    from so101sim.kinematics.core import Kinematics
-    from so101sim.scenes import SCENE_PRESETS
-    from so101sim.scenes.build import build_scene
+    from so101sim.kinematics import Kinematics
+    from so101sim.scenes import SCENE_PRESETS, build_scene
 
     kin = Kinematics(build_scene(SCENE_PRESETS["pick_cube"]))
     out = np.zeros((len(states), 3), np.float32)

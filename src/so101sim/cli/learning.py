@@ -15,6 +15,7 @@ import importlib
 import importlib.util
 import os
 import sys
+from collections.abc import Callable
 from typing import Any
 
 from ..errors import MissingDependencyError
@@ -222,12 +223,21 @@ def _workers(value: int | None) -> int:
     return value if value is not None else max(1, len(os.sched_getaffinity(0)))
 
 
+def _with_bar(total: int, unit: str, disable: bool, run: Callable[[Any], Any]) -> Any:
+    """Returns ``run(bar)``, with a progress bar on stderr that is closed however it ends."""
+    # start-up: the progress bar's module only when a command that shows one runs
+    from tqdm import tqdm
+
+    bar = tqdm(total=total, unit=unit, disable=disable, file=sys.stderr)
+    try:
+        return run(bar)
+    finally:
+        bar.close()
+
+
 def cmd_dataset(args: argparse.Namespace) -> int:
     module = plugin_module("dataset")
     module.quiet_encoder_logs()  # no encoder settings or muxer lines between the progress
-    # start-up: the progress bar's module only when a dataset is written
-    from tqdm import tqdm
-
     settings = module.DatasetSettings(
         task=args.task,
         episodes=args.episodes,
@@ -245,18 +255,17 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         ray_address=args.ray or "local",
         video=not args.no_video,
     )
-    bar = tqdm(total=args.episodes, unit="episode", disable=args.no_progress, file=sys.stderr)
 
-    def progress(episode: Any) -> None:
-        if episode.success:
-            bar.update(1)
-        else:
-            bar.set_postfix_str(f"failed seed {episode.seed}")
+    def run(bar: Any) -> Any:
+        def progress(episode: Any) -> None:
+            if episode.success:
+                bar.update(1)
+            else:
+                bar.set_postfix_str(f"failed seed {episode.seed}")
 
-    try:
-        report = module.generate_dataset(settings, progress)
-    finally:
-        bar.close()
+        return module.generate_dataset(settings, progress)
+
+    report = _with_bar(args.episodes, "episode", args.no_progress, run)
     say(
         f"wrote {report.episodes} episodes ({report.frames} frames) to {report.root} in "
         f"{report.wall_seconds:.1f} s with {report.workers} worker(s): "
@@ -270,9 +279,6 @@ def cmd_dataset(args: argparse.Namespace) -> int:
 
 def cmd_eval(args: argparse.Namespace) -> int:
     module = plugin_module("eval")
-    # start-up: the progress bar's module only when a policy is evaluated
-    from tqdm import tqdm
-
     settings = module.EvalSettings(
         policy=args.policy,
         task=args.task,
@@ -287,11 +293,12 @@ def cmd_eval(args: argparse.Namespace) -> int:
         device=args.device,
         camera_file=args.cameras,
     ).checked()  # every setting before the bar: an error is its only line
-    bar = tqdm(total=args.episodes, unit="episode", disable=args.no_progress, file=sys.stderr)
-    try:
-        report = module.evaluate_policy(settings, lambda _: bar.update(1))
-    finally:
-        bar.close()
+    report = _with_bar(
+        args.episodes,
+        "episode",
+        args.no_progress,
+        lambda bar: module.evaluate_policy(settings, lambda _: bar.update(1)),
+    )
     low, high = report.interval
     say(
         f"{report.task} (randomize {report.randomize}): success {report.successes}/"
@@ -311,9 +318,6 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 def cmd_pretrain_backbone(args: argparse.Namespace) -> int:
     module = plugin_module("pretrain-backbone")
-    # start-up: the progress bar's module only when a backbone is pretrained
-    from tqdm import tqdm
-
     settings = module.PretrainSettings(
         dataset=args.dataset,
         output=args.output,
@@ -327,11 +331,12 @@ def cmd_pretrain_backbone(args: argparse.Namespace) -> int:
         n_encoder_layers=args.encoder_layers,
         chunk_size=args.chunk_size,
     ).checked()  # every setting before the bar: an error is its only line
-    bar = tqdm(total=args.steps, unit="step", disable=args.no_progress, file=sys.stderr)
-    try:
-        report = module.pretrain_backbone(settings, lambda _: bar.update(1))
-    finally:
-        bar.close()
+    report = _with_bar(
+        args.steps,
+        "step",
+        args.no_progress,
+        lambda bar: module.pretrain_backbone(settings, lambda _: bar.update(1)),
+    )
     say(
         f"wrote {report.output} after {report.steps} steps on {report.frames} frames in "
         f"{report.wall_seconds:.1f} s; held-out error: the cube on the table "
