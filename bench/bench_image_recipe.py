@@ -4,6 +4,7 @@
     python bench/bench_image_recipe.py --work runs/recipe [--seed 1] [--threads 1]
         [--inputs joints+cameras|cameras] [--episodes 100] [--steps 3500]
         [--eval-episodes 100] [--checkpoints 2000,3000] [--workers 2] [--skip-light] [--json FILE]
+        [--pretrain-steps 500]
 
 Runs the recipe's three commands as a user runs them (``so101sim dataset``, ``lerobot-train``,
 ``so101sim eval``, the executables beside this Python), each timed on the wall clock, and
@@ -20,6 +21,13 @@ the date and the machine.
 
 The small sizes (``--episodes 3 --steps 4 --save-freq 2 --checkpoints 2 --eval-episodes 2``)
 check that the pipeline runs in a few minutes; only the defaults are the recipe.
+
+``--pretrain-steps N`` runs docs/learning.md's pretrained-backbone variant: the dataset is made
+with ``--environment-state`` (the cube's pose, the pretraining's label only), ``so101sim
+pretrain-backbone`` trains the backbone for N steps with the training seed, and ``lerobot-train
+--policy.path`` trains on from it; the stage is timed and counted in the recipe's total. Its
+dataset, backbone and runs live beside the recipe's own in ``--work`` (``data_env``,
+``backbone_sN``, ``train_pre_sN``), so both can be run on one ``--work``.
 """
 
 from __future__ import annotations
@@ -49,6 +57,7 @@ LIMITS = {
     "seed": (0, 2**31 - 1),
     "threads": (1, 256),
     "workers": (1, 64),
+    "pretrain_steps": (0, 100_000),
 }
 
 
@@ -87,22 +96,44 @@ def timed(cmd: list[str], log: Path, env: dict[str, str] | None = None) -> dict:
 
 
 def dataset(args: argparse.Namespace, root: Path) -> dict:
+    env_state = args.pretrain_steps > 0  # the pretraining's label, recorded beside the images
     if (root / "meta" / "info.json").exists():
         made = json.loads((root / "meta" / "so101sim.json").read_text())["settings"]
         want = {"task": "pick_cube", "episodes": args.episodes, "cameras": ["front", "wrist"],
-                "image_size": [120, 160], "randomize": RANDOMIZE}  # fmt: skip
+                "image_size": [120, 160], "randomize": RANDOMIZE,
+                "environment_state": env_state}  # fmt: skip
+        made.setdefault("environment_state", False)
         same(root, made, want)
         info = json.loads((root / "meta" / "info.json").read_text())
         return {"wall_s": None, "episodes": info["total_episodes"], "frames": info["total_frames"]}
     cmd = [tool("so101sim"), "dataset", "pick_cube", "--episodes", str(args.episodes),
            "-o", str(root), "--cameras", "front,wrist", "--image-size", "160x120",
            "--randomize", RANDOMIZE, "--no-progress"]  # fmt: skip
-    result = timed(cmd, root.parent / "dataset.log")
+    if env_state:
+        cmd.append("--environment-state")
+    result = timed(cmd, root.parent / f"{root.name}.log")
     info = json.loads((root / "meta" / "info.json").read_text())
     return result | {"episodes": info["total_episodes"], "frames": info["total_frames"]}
 
 
-def train(args: argparse.Namespace, root: Path, out: Path) -> dict:
+def pretrain(args: argparse.Namespace, root: Path, out: Path) -> dict:
+    """``so101sim pretrain-backbone`` for ``--pretrain-steps``, seeded with the training seed."""
+    report = out / "pretrain.json"
+    if report.exists():
+        made = json.loads(report.read_text())["settings"]
+        want = {"steps": args.pretrain_steps, "seed": args.seed, "dataset": str(root)}
+        same(out, made, want)
+        return {"wall_s": None} | json.loads(report.read_text())["report"]
+    if out.exists():
+        raise SystemExit(f"{out} holds a pretraining that did not finish: remove it")
+    cmd = [tool("so101sim"), "pretrain-backbone", str(root), "-o", str(out), "--steps",
+           str(args.pretrain_steps), "--seed", str(args.seed), "--no-progress"]  # fmt: skip
+    env = {**os.environ, "OMP_NUM_THREADS": str(args.threads)}
+    result = timed(cmd, out.parent / f"{out.name}.log", env)
+    return result | json.loads(report.read_text())["report"]
+
+
+def train(args: argparse.Namespace, root: Path, out: Path, backbone: Path | None) -> dict:
     last = out / "checkpoints" / f"{args.steps:06d}" / "pretrained_model"
     if (last / "model.safetensors").exists() and (last / "train_config.json").exists():
         made = json.loads((last / "train_config.json").read_text())
@@ -119,8 +150,10 @@ def train(args: argparse.Namespace, root: Path, out: Path) -> dict:
             f"--config_path={out}/checkpoints/last/pretrained_model/train_config.json "
             "--resume=true and run this again"
         )
+    # from scratch, or on from the pretrained ACT (its config holds the same policy options)
+    start = "--policy.type=act" if backbone is None else f"--policy.path={backbone}"
     cmd = [tool("lerobot-train"), "--dataset.repo_id=local/so101sim", f"--dataset.root={root}",
-           "--policy.type=act", "--policy.device=cpu", "--policy.push_to_hub=false",
+           start, "--policy.device=cpu", "--policy.push_to_hub=false",
            "--policy.pretrained_backbone_weights=null", "--policy.optimizer_lr_backbone=1e-4",
            "--policy.dim_model=256", "--policy.dim_feedforward=1024",
            "--policy.n_encoder_layers=2", "--policy.use_vae=false", "--policy.chunk_size=30",
@@ -186,6 +219,12 @@ def main() -> None:
     p.add_argument("--workers", type=int, default=2, help="worker processes (2)")
     p.add_argument("--skip-light", action="store_true", help="no randomised evaluation")
     p.add_argument("--json", help="also write the figures to this file")
+    p.add_argument(
+        "--pretrain-steps",
+        type=int,
+        default=0,
+        help="pretrain the backbone this many steps first (so101sim pretrain-backbone; 0: none)",
+    )
     args = p.parse_args()
     for name in LIMITS:
         bounded(name, getattr(args, name))
@@ -202,11 +241,19 @@ def main() -> None:
     work = Path(args.work)
     work.mkdir(parents=True, exist_ok=True)
     only = "" if args.inputs == "joints+cameras" else "_cameras"  # the recipe's own: train_sN
-    root, run = work / "data", work / f"train{only}_s{args.seed}"
+    pre = "_pre" if args.pretrain_steps else ""
+    if pre and args.inputs != "joints+cameras":
+        raise SystemExit("--pretrain-steps: expected --inputs joints+cameras (the ACT it writes)")
+    root = work / ("data_env" if pre else "data")
+    run = work / f"train{only}{pre}_s{args.seed}"
     figures: dict = {"date": time.strftime("%Y-%m-%d %H:%M"), "cores": os.cpu_count(),
-                     "inputs": args.inputs}  # fmt: skip
+                     "inputs": args.inputs, "pretrain_steps": args.pretrain_steps}  # fmt: skip
     figures["dataset"] = dataset(args, root)
-    figures["training"] = train(args, root, run)
+    backbone = None
+    if pre:
+        backbone = work / f"backbone_s{args.seed}"
+        figures["pretraining"] = pretrain(args, root, backbone)
+    figures["training"] = train(args, root, run, backbone)
 
     def policy(step: int) -> Path:
         return run / "checkpoints" / f"{step:06d}" / "pretrained_model"
@@ -221,7 +268,9 @@ def main() -> None:
         for step in curve
     }
     recipe = [
-        figures[k]["wall_s"] for k in ("dataset", "training", "clean", "light") if k in figures
+        figures[k]["wall_s"]
+        for k in ("dataset", "pretraining", "training", "clean", "light")
+        if k in figures
     ]
     figures["recipe_wall_s"] = None if None in recipe else round(sum(recipe), 1)
 
@@ -239,6 +288,11 @@ def main() -> None:
     print(f"| stage (training seed {args.seed}, inputs {args.inputs}) | wall time | figure |")
     print("| --- | --- | --- |")
     print(f"| dataset | {wall(d)} | {d['episodes']} episodes, {d['frames']} frames |")
+    if "pretraining" in figures:
+        r = figures["pretraining"]
+        print(f"| backbone pretraining, {args.pretrain_steps} steps | {wall(r)} | held-out error: "
+              f"table {r['front_error_mm']:.1f} mm (mean {r['front_baseline_mm']:.1f}), "
+              f"gripper {r['wrist_error_mm']:.1f} mm ({r['wrist_baseline_mm']:.1f}) |")  # fmt: skip
     print(f"| training, {args.steps} steps | {wall(figures['training'])} | |")
     print(f"| clean, seeds 2000+ | {wall(figures['clean'])} | {rate(figures['clean'])} |")
     if "light" in figures:

@@ -50,7 +50,7 @@ from so101sim.scenes import (
     resolve_cameras,
 )
 from so101sim.units import JOINT_NAMES
-from so101sim.validation import check_choice, check_count, check_range
+from so101sim.validation import check_choice, check_count, check_range, checked_path
 
 from .config_so101sim import ROBOT_TYPE
 from .episodes import Episode, episodes, jsonable, simulate_episode
@@ -107,6 +107,8 @@ class DatasetSettings:
             SettingError: a value out of range (the message says what was expected).
         """
         check_choice(self.task, "task", TASK_TEXT)  # the tasks a follower's expert records
+        # empty, NUL, a name or path too long: refused before anything touches the disk
+        checked_path(self.root, "dataset folder", error=OutputPathError)
         check_count(self.episodes, "episodes", minimum=1, maximum=MAX_EPISODES)
         check_count(self.seed, "seed", maximum=2**62)
         check_count(self.fps, "fps", minimum=1, maximum=500, unit=" Hz")
@@ -214,18 +216,20 @@ def generate_dataset(
 
     datasets.disable_progress_bars()  # the caller shows the progress
     settings = settings.checked()
-    root = Path(settings.root)
+    root = checked_path(settings.root, "dataset folder", error=OutputPathError)
     if root.exists():
         raise OutputPathError(
             f"{root} exists; expected a new folder (LeRobot does not overwrite a dataset)"
         )
     try:
         root.parent.mkdir(parents=True, exist_ok=True)
+        # the temporary folder's name stays within NAME_MAX however long root's name is
+        tmp = Path(tempfile.mkdtemp(prefix=f".{root.name[:50]}.", dir=root.parent))
     except OSError as exc:
         raise OutputPathError(
-            f"cannot make {root.parent} ({exc}); expected a writable folder"
-        ) from exc
-    tmp = Path(tempfile.mkdtemp(prefix=f".{root.name}.", dir=root.parent))
+            f"cannot write the dataset folder {str(root)!r}: creating a folder in "
+            f"{str(root.parent)!r} failed ({exc.strerror}); expected a folder you can write to"
+        ) from None
     start = time.perf_counter()
     kept: list[int] = []
     failed: list[int] = []

@@ -259,3 +259,29 @@ def test_a_dataset_worker_imports_neither_lerobot_nor_torch():
         seen = pool.submit(loaded, heavy).result(timeout=600)
     one_thread = os.environ.get("LP_NUM_THREADS", "1")  # the worker keeps one set here
     assert seen == {"imported": [], "LP_NUM_THREADS": one_thread}
+
+
+@pytest.mark.parametrize(
+    ("root", "message"),
+    [
+        (" ", "path is empty"),
+        ("x" * 300, "300 bytes long; expected at most"),
+        ("/proc/no-such-folder/ds", "expected a folder you can write to"),
+    ],
+)
+def test_a_dataset_folder_that_cannot_be_written_is_refused_before_anything_runs(
+    tmp_path, root, message
+):
+    path = root if root.startswith(("/", " ")) else str(tmp_path / root)
+    with pytest.raises(OutputPathError, match=message):
+        generate_dataset(DatasetSettings(root=path, task="pick_cube", episodes=1))
+    assert list(tmp_path.iterdir()) == []  # nothing half-done
+
+
+def test_a_long_legal_dataset_name_leaves_its_temporary_folder_within_the_name_limit(tmp_path):
+    name = "d" * 250  # legal (NAME_MAX 255); ".<name>.<random>" would not be
+    report = generate_dataset(
+        DatasetSettings(root=str(tmp_path / name), task="pick_cube", episodes=1, workers=1)
+    )
+    assert report.frames > 0
+    assert [p.name for p in tmp_path.iterdir()] == [name]
