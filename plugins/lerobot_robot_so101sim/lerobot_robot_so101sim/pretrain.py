@@ -298,7 +298,7 @@ def pretrain_backbone(
         sched.step()
         if step % 250 == 0 or step == s.steps:
             front_mm, wrist_mm = errors()
-            history.append({"step": step, "loss": float(loss), "front_mm": front_mm,
+            history.append({"step": step, "loss": loss.item(), "front_mm": front_mm,
                             "wrist_mm": wrist_mm})  # fmt: skip
             log.info(
                 "step %d: held-out error front %.1f mm, wrist %.1f mm", step, front_mm, wrist_mm
