@@ -47,13 +47,6 @@ def _infinite(model: mujoco.MjModel) -> np.ndarray:
     return np.flatnonzero(planes & (model.geom_size[:, 0] <= 0) & (model.geom_size[:, 1] <= 0))
 
 
-def _texture_scale(model: mujoco.MjModel, geom: int) -> np.ndarray:
-    """The texture repeat MuJoCo's renderer applies to ``geom`` (1 where it is not > 0)."""
-    mat = int(model.geom_matid[geom])
-    rep = model.mat_texrepeat[mat] if mat >= 0 else np.zeros(2)
-    return np.where(rep > 0, rep, 1.0)
-
-
 def finite_planes(model: mujoco.MjModel) -> tuple[int, ...]:
     """Give each infinite plane of the render model ``model`` the finite size MuJoCo's renderer
     draws it at (in place; call it before the renderer's context is made) and return their geom
@@ -107,22 +100,32 @@ def as_infinite(scene: mujoco.MjvScene, model: mujoco.MjModel, planes: tuple[int
         return
     camera = head(scene)
     marker = None
+    found = 0
     for i in range(scene.ngeom):
         g = scene.geoms[i]
-        if g.objtype != _GEOM or g.objid not in planes:
+        gid = g.objid
+        if gid not in planes or g.objtype != _GEOM:
             continue
         pos = np.asarray(g.pos, dtype=float)
         rot = np.asarray(g.mat, dtype=float).reshape(3, 3)  # columns: the plane's axes
         if marker is None:
             marker = (pos.copy(), rot.flatten())
-        half = model.geom_size[g.objid, :2]
-        scale = _texture_scale(model, g.objid)
-        period = 2.0 / scale
-        phase = [(half[0] + 1.0 / scale[0]) % period[0], (-half[1] - 1.0 / scale[1]) % period[1]]
-        step = _grid_step(model, g.objid)
-        along = rot[:, :2].T @ (camera - pos)  # the camera from the plane, on its two axes
-        centre = 2.0 * step * np.floor(0.5 * along / step + 0.5)  # MuJoCo's re-centring
-        g.pos[:] = pos + rot[:, :2] @ (centre + np.asarray(phase))
+        mat = int(model.geom_matid[gid])
+        rep = model.mat_texrepeat[mat] if mat >= 0 else (0.0, 0.0)
+        zfar = float(model.vis.map.zfar * model.stat.extent)
+        offset = []
+        for k, sign in ((0, 1.0), (1, -1.0)):  # along each of the plane's two axes
+            # float32, as the texture repeat is (MuJoCo's, and the frames made before)
+            scale = np.float32(rep[k]) if rep[k] > 0 else np.float32(1.0)
+            period = 2.0 / scale
+            phase = (sign * model.geom_size[gid, k] + sign / scale) % period  # float64
+            step = 2.0 / scale if rep[k] > 0 else np.float32(2.1 * zfar / (GRID - 2))
+            along = float(rot[:, k] @ (camera - pos))  # the camera from the plane, on this axis
+            offset.append(2.0 * step * np.floor(0.5 * along / step + 0.5) + phase)  # re-centred
+        g.pos[:] = pos + rot[:, :2] @ np.asarray(offset)
+        found += 1
+        if found == len(planes):
+            break
     if marker is None:
         return
     if scene.ngeom >= scene.maxgeom:
