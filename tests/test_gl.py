@@ -128,10 +128,10 @@ def test_this_machine_can_render_offscreen():
     assert gl.renderer_string()  # a GL context starts (Mesa's llvmpipe on a CPU-only machine)
 
 
-def test_a_worker_gets_one_rasterizer_thread_unless_one_is_set(monkeypatch):
+def test_a_worker_rasterises_in_its_own_thread_unless_a_count_is_set(monkeypatch):
     monkeypatch.delenv("LP_NUM_THREADS", raising=False)
     gl.one_rasterizer_thread()
-    assert os.environ["LP_NUM_THREADS"] == "1"
+    assert os.environ["LP_NUM_THREADS"] == "0"
     monkeypatch.setenv("LP_NUM_THREADS", "3")
     gl.one_rasterizer_thread()
     assert os.environ["LP_NUM_THREADS"] == "3"

@@ -310,6 +310,9 @@ def _write_video(settings: EvalSettings, seed: int, frames: list[np.ndarray]) ->
 
 def _worker_init() -> None:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
+    from so101sim.gl import one_rasterizer_thread  # Mesa draws in the worker's own thread
+
+    one_rasterizer_thread()
 
 
 def evaluate_policy(

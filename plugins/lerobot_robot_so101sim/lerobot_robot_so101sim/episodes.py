@@ -3,13 +3,14 @@ handed back in seed order.
 
 Each worker runs so101sim's :func:`~so101sim.envs.run.expert_frames` (plain arguments) and
 sends the episode's arrays back; at most ``2 × workers`` episodes are in flight (the frames
-held in memory stay bounded). A worker starts with one thread for Mesa's CPU rasteriser
-(:func:`so101sim.gl.one_rasterizer_thread`): the workers already share the cores, and more
-threads only make them wait on each other. (Not OpenMP's thread count: NumPy's linear algebra
-rounds differently with another count, which changes the expert's plans, and the same seed
-must give the same episode whatever the worker count.) Everything a worker is handed to run
-lives in so101sim's core, so a worker never imports LeRobot, torch or this plugin (importing
-this plugin's package imports LeRobot and torch: several CPU-seconds per worker).
+held in memory stay bounded). A worker's Mesa CPU rasteriser draws in the worker's own
+thread (:func:`so101sim.gl.one_rasterizer_thread`): the workers already share the cores, and
+a rasteriser thread only hands each frame over and back. (Not OpenMP's thread count: NumPy's
+linear algebra rounds differently with another count, which changes the expert's plans, and
+the same seed must give the same episode whatever the worker count.) Everything a worker is
+handed to run lives in so101sim's core, so a worker never imports LeRobot, torch or this
+plugin (importing this plugin's package imports LeRobot and torch: several CPU-seconds per
+worker).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ if TYPE_CHECKING:
     from .dataset import DatasetSettings
 
 worker_init = one_rasterizer_thread
-"""A worker's start: one llvmpipe thread (see the module's text)."""
+"""A worker's start: llvmpipe draws in the worker's thread (see the module's text)."""
 
 
 def worker_pool(workers: int) -> ProcessPoolExecutor:
