@@ -214,6 +214,8 @@ def generate_dataset(
 
     from so101sim.envs import episode_steps_limit  # imported here: it imports MuJoCo
 
+    from .writer import fast_writer, size_video_files  # imported here: it imports LeRobot
+
     datasets.disable_progress_bars()  # the caller shows the progress
     settings = settings.checked()
     root = checked_path(settings.root, "dataset folder", error=OutputPathError)
@@ -236,85 +238,89 @@ def generate_dataset(
     randomization: dict[str, Any] = {}
     frames = 0
     sim_seconds = 0.0
-    try:
-        dataset = LeRobotDataset.create(
-            settings.repo_id,
-            settings.fps,
-            root=tmp / "dataset",
-            robot_type=ROBOT_TYPE,
-            features=dataset_features(settings),
-            use_videos=settings.video,
-            image_writer_threads=0,
-            # videos are encoded on a thread as frames arrive, not at each save_episode: the
-            # writer keeps taking the workers' episodes while the encoder works
-            streaming_encoding=settings.video and bool(settings.cameras),
-            encoder_threads=ENCODER_THREADS,
-            # room for a whole episode's frames: LeRobot drops a frame (a warning, and a video
-            # shorter than the episode) when its encoder's queue stays full for 0.1 s, which a
-            # busy machine does when the frames come faster than real time, as they do here
-            # (at most one more copy of the episode in hand, which is already all in memory;
-            # the + 1 is the end-of-video marker LeRobot puts after the last frame)
-            encoder_queue_maxsize=episode_steps_limit(settings.task, settings.fps) + 1,
-        )
-        text = TASK_TEXT[settings.task]
-        next_seed = settings.seed
-        # simulate in batches (a batch is what the workers have in flight): a failed take is
-        # replaced by the next seed until the episodes asked for are kept
-        limit = settings.seed + 10 * settings.episodes + 10
-        while len(kept) < settings.episodes:
-            want = settings.episodes - len(kept)
-            if next_seed >= limit:
-                raise SettingError(
-                    f"the expert failed {len(failed)} of {len(failed) + len(kept)} takes "
-                    f"(seeds {failed[:10]}...); expected most to succeed: check the settings"
-                )
-            seeds = list(range(next_seed, min(next_seed + want, limit)))
-            next_seed = seeds[-1] + 1
-            for ep in episodes(settings, seeds):
-                sim_seconds += ep.sim_seconds
-                if progress is not None:
-                    progress(ep)
-                if not ep.success:
-                    failed.append(ep.seed)
-                    log.info("seed %d: the expert failed; episode left out", ep.seed)
-                    continue
-                for t in range(len(ep.actions)):
-                    frame: dict[str, Any] = {
-                        "observation.state": ep.states[t],
-                        "action": ep.actions[t],
-                        "task": text,
-                    }
-                    for cam, imgs in ep.images.items():
-                        frame[f"observation.images.{cam}"] = imgs[t]
-                    if ep.environment_state is not None:
-                        frame["observation.environment_state"] = ep.environment_state[t]
-                    dataset.add_frame(frame)
-                dataset.save_episode()
-                frames += len(ep.actions)
-                kept.append(ep.seed)
-                if ep.randomization:
-                    randomization[str(ep.seed)] = ep.randomization
-        dataset.finalize()
-        from so101sim.model import servo_model  # imported here: it imports MuJoCo
+    # LeRobot's writer, made to keep up with the workers (.writer)
+    with fast_writer():
+        try:
+            dataset = LeRobotDataset.create(
+                settings.repo_id,
+                settings.fps,
+                root=tmp / "dataset",
+                robot_type=ROBOT_TYPE,
+                features=dataset_features(settings),
+                use_videos=settings.video,
+                image_writer_threads=0,
+                # videos are encoded on a thread as frames arrive, not at each save_episode: the
+                # writer keeps taking the workers' episodes while the encoder works
+                streaming_encoding=settings.video and bool(settings.cameras),
+                encoder_threads=ENCODER_THREADS,
+                # room for a whole episode's frames: LeRobot drops a frame (a warning, and a video
+                # shorter than the episode) when its encoder's queue stays full for 0.1 s, which a
+                # busy machine does when the frames come faster than real time, as they do here
+                # (at most one more copy of the episode in hand, which is already all in memory;
+                # the + 1 is the end-of-video marker LeRobot puts after the last frame)
+                encoder_queue_maxsize=episode_steps_limit(settings.task, settings.fps) + 1,
+            )
+            text = TASK_TEXT[settings.task]
+            next_seed = settings.seed
+            # simulate in batches (a batch is what the workers have in flight): a failed take is
+            # replaced by the next seed until the episodes asked for are kept
+            limit = settings.seed + 10 * settings.episodes + 10
+            while len(kept) < settings.episodes:
+                want = settings.episodes - len(kept)
+                if next_seed >= limit:
+                    raise SettingError(
+                        f"the expert failed {len(failed)} of {len(failed) + len(kept)} takes "
+                        f"(seeds {failed[:10]}...); expected most to succeed: check the settings"
+                    )
+                seeds = list(range(next_seed, min(next_seed + want, limit)))
+                next_seed = seeds[-1] + 1
+                for ep in episodes(settings, seeds):
+                    sim_seconds += ep.sim_seconds
+                    if progress is not None:
+                        progress(ep)
+                    if not ep.success:
+                        failed.append(ep.seed)
+                        log.info("seed %d: the expert failed; episode left out", ep.seed)
+                        continue
+                    for t in range(len(ep.actions)):
+                        frame: dict[str, Any] = {
+                            "observation.state": ep.states[t],
+                            "action": ep.actions[t],
+                            "task": text,
+                        }
+                        for cam, imgs in ep.images.items():
+                            frame[f"observation.images.{cam}"] = imgs[t]
+                        if ep.environment_state is not None:
+                            frame["observation.environment_state"] = ep.environment_state[t]
+                        dataset.add_frame(frame)
+                    dataset.save_episode()
+                    if not kept:  # the first episode: the video files sized from its videos
+                        size_video_files(dataset, settings.episodes)
+                    frames += len(ep.actions)
+                    kept.append(ep.seed)
+                    if ep.randomization:
+                        randomization[str(ep.seed)] = ep.randomization
+            dataset.finalize()
+            from so101sim.model import servo_model  # imported here: it imports MuJoCo
 
-        meta = {
-            "generator": "so101sim dataset",
-            "task": settings.task,
-            "servo_model": servo_model(),  # the environments' default arm profile
-            "settings": jsonable(asdict(settings)),
-            # the cameras as rendered (at --image-size): the rig to give eval or a real follower
-            "cameras": jsonable(
-                [asdict(c) for c in resolve_cameras(settings.cameras, settings.image_size)]
-            ),
-            "episode_seeds": kept,
-            "failed_seeds": failed,
-            "randomize": settings.randomize,
-            "randomization": randomization,
-        }
-        (tmp / "dataset" / "meta" / "so101sim.json").write_text(json.dumps(meta, indent=1))
-        os.replace(tmp / "dataset", root)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+            meta = {
+                "generator": "so101sim dataset",
+                "task": settings.task,
+                "servo_model": servo_model(),  # the environments' default arm profile
+                "settings": jsonable(asdict(settings)),
+                # the cameras as rendered (at --image-size): the rig to give eval or a real follower
+                "cameras": jsonable(
+                    [asdict(c) for c in resolve_cameras(settings.cameras, settings.image_size)]
+                ),
+                "episode_seeds": kept,
+                "failed_seeds": failed,
+                "randomize": settings.randomize,
+                "randomization": randomization,
+            }
+            (tmp / "dataset" / "meta" / "so101sim.json").write_text(json.dumps(meta, indent=1))
+            os.replace(tmp / "dataset", root)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
     return DatasetReport(
         root=root,
         episodes=len(kept),

@@ -222,17 +222,21 @@ def test_a_slow_video_encoder_loses_no_frame(tmp_path, monkeypatch, caplog):
     import time
 
     import av
-    from lerobot.datasets import compute_stats, video_utils
+    from lerobot.datasets import video_utils
+    from lerobot_robot_so101sim.writer import Uint8QuantileStats
 
-    update = compute_stats.RunningQuantileStats.update
+    update = Uint8QuantileStats.update  # the statistics the encoder threads keep (.writer)
+
+    stalls = []
 
     def stalled(self, batch):  # each video's encoder thread stalls 0.5 s on its first frame
         encoder = isinstance(threading.current_thread(), video_utils._CameraEncoderThread)
         if encoder and self._count == 0:
+            stalls.append(threading.current_thread().name)
             time.sleep(0.5)
         return update(self, batch)
 
-    monkeypatch.setattr(compute_stats.RunningQuantileStats, "update", stalled)
+    monkeypatch.setattr(Uint8QuantileStats, "update", stalled)
     root = tmp_path / "ds"
     report = generate_dataset(
         DatasetSettings(
@@ -241,6 +245,7 @@ def test_a_slow_video_encoder_loses_no_frame(tmp_path, monkeypatch, caplog):
         )
     )  # fmt: skip
     assert report.frames > 31  # more than LeRobot's default queue (30 frames) holds
+    assert len(stalls) == 2  # each camera's encoder did stall
     assert "dropped" not in caplog.text
     for cam in ("front", "wrist"):
         (video,) = (root / "videos" / f"observation.images.{cam}").rglob("*.mp4")
@@ -257,7 +262,7 @@ def test_a_dataset_worker_imports_neither_lerobot_nor_torch():
     heavy = ["lerobot", "lerobot_robot_so101sim", "torch"]
     with worker_pool(1) as pool:
         seen = pool.submit(loaded, heavy).result(timeout=600)
-    one_thread = os.environ.get("LP_NUM_THREADS", "1")  # the worker keeps one set here
+    one_thread = os.environ.get("LP_NUM_THREADS", "0")  # the worker keeps one set here
     assert seen == {"imported": [], "LP_NUM_THREADS": one_thread}
 
 
