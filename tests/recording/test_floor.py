@@ -186,3 +186,44 @@ def test_a_frame_depends_only_on_the_state_and_the_camera_not_on_what_was_drawn_
         np.testing.assert_array_equal(fr.render(sim.data), first)
     finally:
         fr.close()
+
+
+@pytest.mark.parametrize(
+    "material",
+    ['material="m"', 'material="m5"', 'rgba=".5 .5 .5 1"'],
+    ids=["repeat 3 4", "repeat 5 5", "no material"],
+)
+def test_the_floor_is_moved_under_the_camera_exactly_as_the_grid_arithmetic_puts_it(material):
+    """Where the plane goes, bit for bit, against the grid's arithmetic written out in NumPy
+    (float64, the step as the float32 texture repeat gives it), for cameras near and far from
+    the plane's origin, where a float32 re-centring would round otherwise."""
+    xml = PLANE_XML.format(uniform="true", size="0 0 .05", light='directional="true"')
+    xml = xml.replace('material="m" pos', f"{material} pos").replace(
+        "</asset>", '<material name="m5" texture="t" texrepeat="5 5" texuniform="true"/></asset>'
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    planes = floor.finite_planes(model)
+    assert planes == (0,)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    scene = mujoco.MjvScene(model, maxgeom=100)
+    mat = int(model.geom_matid[0])
+    rep = model.mat_texrepeat[mat] if mat >= 0 else np.zeros(2)
+    scale = np.where(rep > 0, rep, 1.0)
+    zfar = float(model.vis.map.zfar * model.stat.extent)
+    step = np.where(rep > 0, 2.0 / scale, 2.1 * zfar / (floor.GRID - 2))
+    half = model.geom_size[0, :2]
+    phase = np.array([(half[0] + 1.0 / scale[0]), (-half[1] - 1.0 / scale[1])]) % (2.0 / scale)
+    for lookat in [(2.0, 2.8, 0.0), (2.31, -3.7, 0.0), (40.1, 12.9, 0.0), (-7.77, 25.03, 0.0)]:
+        view = mujoco.MjvCamera()
+        view.lookat[:], view.distance, view.elevation, view.azimuth = lookat, 3.0, -30.0, 60.0
+        mujoco.mjv_updateScene(
+            model, data, mujoco.MjvOption(), None, view, mujoco.mjtCatBit.mjCAT_ALL, scene
+        )
+        (g,) = [scene.geoms[i] for i in range(scene.ngeom) if scene.geoms[i].objid == 0]
+        pos, rot = np.array(g.pos, float), np.array(g.mat, float).reshape(3, 3)
+        along = rot[:, :2].T @ (floor.head(scene) - pos)
+        centre = 2.0 * step * np.floor(0.5 * along / step + 0.5)
+        floor.as_infinite(scene, model, planes)
+        expected = (pos + rot[:, :2] @ (centre + phase)).astype(np.float32)  # as a geom keeps it
+        assert np.array_equal(np.array(g.pos), expected), lookat

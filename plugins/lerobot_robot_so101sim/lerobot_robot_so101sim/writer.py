@@ -9,9 +9,11 @@ cores (per frame of two 160x120 cameras: ``bench/bench_dataset_writer.py``):
   histogram per channel (about 3.5 ms a camera frame, twice the AV1 encoding of it). Within
   :func:`fast_writer`, an 8-bit image is counted once per grey level instead
   (:class:`Uint8QuantileStats`): the same histogram, bin for bin, and so the same quantiles,
-  minimum, maximum and mean; the mean of the squares is summed exactly, where LeRobot's float32
-  sums round: on two episodes' frames the standard deviation was within 4e-6 of the exact one
-  (float64 over every pixel), LeRobot's within 4e-4;
+  minimum and maximum; the sums are exact, where LeRobot's float32 sums round: the mean is
+  LeRobot's while its sum stays within 2**24 (a frame of at most 65 793 pixels, as 160x120), and
+  on two episodes' frames the standard deviation was within 4e-6 of the exact one (float64
+  over every pixel), LeRobot's within 4e-4. (With ``--no-video`` LeRobot's statistics of the
+  PNG frames, over a sample of whole episodes, go through it too: exact there as well);
 - **a pass that embeds image files**: before writing an episode's rows LeRobot runs them, one
   at a time, through ``datasets``' ``embed_table_storage`` (about 13 ms an episode), which has
   nothing to do when the images are videos (they are not in the parquet); such an episode is
@@ -55,9 +57,10 @@ class Uint8QuantileStats(compute_stats.RunningQuantileStats):
     """LeRobot's running statistics, with 8-bit pixels counted per grey level.
 
     A batch of ``uint8`` values (each row a pixel, each column a channel) is reduced to its
-    256 counts per channel; the minimum, maximum, mean and histogram are then what LeRobot's
+    256 counts per channel; the minimum, maximum and histogram are then what LeRobot's
     ``update`` gives (its histogram puts each grey level in the bin ``np.histogram`` does), and
-    the mean of the squares is summed exactly. Any other batch goes to LeRobot's own ``update``."""
+    the sums of the values and of their squares are exact (LeRobot's float32 sums round past
+    2**24: the same mean below that). Any other batch goes to LeRobot's own ``update``."""
 
     _LEVELS = np.arange(256, dtype=np.int64)
     _VALUES = _LEVELS.astype(np.float32)  # the grey levels as LeRobot's float32 batch holds them

@@ -28,6 +28,7 @@ pixel). ``tests/recording/test_floor.py`` compares the frames with MuJoCo's own 
 from __future__ import annotations
 
 import logging
+import math
 
 import mujoco
 import numpy as np
@@ -111,17 +112,21 @@ def as_infinite(scene: mujoco.MjvScene, model: mujoco.MjModel, planes: tuple[int
         if marker is None:
             marker = (pos.copy(), rot.flatten())
         mat = int(model.geom_matid[gid])
-        rep = model.mat_texrepeat[mat] if mat >= 0 else (0.0, 0.0)
-        zfar = float(model.vis.map.zfar * model.stat.extent)
+        coarse = 2.1 * float(model.vis.map.zfar * model.stat.extent) / (GRID - 2)
+        along = rot[:, :2].T @ (camera - pos)  # the camera from the plane, on its two axes
         offset = []
         for k, sign in ((0, 1.0), (1, -1.0)):  # along each of the plane's two axes
-            # float32, as the texture repeat is (MuJoCo's, and the frames made before)
-            scale = np.float32(rep[k]) if rep[k] > 0 else np.float32(1.0)
-            period = 2.0 / scale
-            phase = (sign * model.geom_size[gid, k] + sign / scale) % period  # float64
-            step = 2.0 / scale if rep[k] > 0 else np.float32(2.1 * zfar / (GRID - 2))
-            along = float(rot[:, k] @ (camera - pos))  # the camera from the plane, on this axis
-            offset.append(2.0 * step * np.floor(0.5 * along / step + 0.5) + phase)  # re-centred
+            # the texture repeat and the grid step as _grid_step gives them (float32 from a
+            # material, as MuJoCo keeps its repeat), then the arithmetic in float64
+            if mat >= 0:
+                rep = model.mat_texrepeat[mat, k]
+                scale = rep if rep > 0 else np.float32(1.0)
+                step = float(2.0 / scale) if rep > 0 else float(np.float32(coarse))
+            else:
+                scale, step = 1.0, coarse
+            phase = (sign * model.geom_size[gid, k] + sign / scale) % (2.0 / scale)
+            centre = 2.0 * step * math.floor(0.5 * along[k] / step + 0.5)  # MuJoCo's re-centring
+            offset.append(centre + phase)
         g.pos[:] = pos + rot[:, :2] @ np.asarray(offset)
         found += 1
         if found == len(planes):
