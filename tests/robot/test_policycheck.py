@@ -20,22 +20,26 @@ NAMES = list(FOLLOWER_STATE_NAMES)
 
 
 def write_policy(tmp: Path, *, cameras=("front", "wrist"), size=(120, 160), env_state=False,
-                 names=NAMES, sim=True, dataset=True) -> Path:  # fmt: skip
-    """A pretrained_model folder: config.json, train_config.json, the dataset's meta."""
+                 names=NAMES, sim=True, dataset=True, relative=False) -> Path:  # fmt: skip
+    """A pretrained_model folder: config.json, train_config.json, the dataset's meta; with
+    ``relative``, where ``lerobot-train --dataset.root=data --output_dir=outputs/run`` run in
+    ``tmp`` puts them (train_config.json keeps both paths as given)."""
     inputs = {"observation.state": {"type": "STATE", "shape": [6]}}
     for cam in cameras:
         inputs[f"observation.images.{cam}"] = {"type": "VISUAL", "shape": [3, *size]}
     if env_state:
         inputs["observation.environment_state"] = {"type": "ENV", "shape": [7]}
-    policy = tmp / "pretrained_model"
+    policy = tmp / (
+        "outputs/run/checkpoints/000004/pretrained_model" if relative else "pretrained_model"
+    )
     policy.mkdir(parents=True)
     outputs = {"action": {"type": "ACTION", "shape": [6]}}
     cfg = {"type": "act", "input_features": inputs, "output_features": outputs}
     (policy / "config.json").write_text(json.dumps(cfg))
     root = tmp / "data"
-    (policy / "train_config.json").write_text(
-        json.dumps({"dataset": {"repo_id": "local/so101sim", "root": str(root)}})
-    )
+    dataset_cfg = {"repo_id": "local/so101sim", "root": "data" if relative else str(root)}
+    train = {"dataset": dataset_cfg, "output_dir": "outputs/run" if relative else str(tmp)}
+    (policy / "train_config.json").write_text(json.dumps(train))
     if dataset:
         (root / "meta").mkdir(parents=True)
         features = {"observation.state": {"dtype": "float32", "shape": [6], "names": names}}
@@ -141,3 +145,50 @@ def test_unreadable_files_exit_2(tmp_path, capsys):
     with pytest.raises(SettingError, match=r"no config\.json|not a file|does not exist"):
         check_policy(tmp_path / "nowhere", no_type)
     assert main(["policy-check", str(tmp_path), "--robot-config", str(no_type)]) == 2
+
+
+def test_a_relative_dataset_root_is_found_from_another_folder(tmp_path, monkeypatch):
+    """The docs' recipe trains with ``--dataset.root=data/...``: train_config.json keeps the
+    root relative to where lerobot-train ran, which policy-check finds from anywhere."""
+    policy = write_policy(tmp_path / "project", relative=True)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    result = check_policy(policy, robot_file(tmp_path, use_degrees=False))
+    assert [f.what for f in result.mismatches] == ["units"]  # the dataset's meta was read
+    assert not any("not checked" in n for n in result.notes)
+    gone = write_policy(tmp_path / "gone", relative=True, dataset=False)
+    notes = check_policy(gone, robot_file(tmp_path, "r2.json")).notes
+    assert any("root 'data'" in n and "not on this machine" in n for n in notes), notes
+
+
+def test_values_are_read_as_lerobots_config_reader_reads_them(tmp_path, capsys):
+    """draccus takes ``"false"`` for false and ``"160"`` for 160: so does the check."""
+    policy = write_policy(tmp_path)
+    as_text = {c: {"type": "opencv", "index_or_path": i, "width": "160", "height": "120",
+                   "fps": "30"} for i, c in enumerate(("front", "wrist"))}  # fmt: skip
+    assert check_policy(policy, robot_file(tmp_path, cameras=as_text)).ok
+    result = check_policy(policy, robot_file(tmp_path, "deg.json", use_degrees="false"))
+    assert [f.what for f in result.mismatches] == ["units"]
+    assert check_policy(policy, robot_file(tmp_path, "deg2.json", use_degrees="true")).ok
+    bad_fps = {**as_text, "front": {**as_text["front"], "fps": "abc"}}
+    path = robot_file(tmp_path, "fps.json", cameras=bad_fps)
+    with pytest.raises(SettingError, match=r"cameras\.front\.fps is 'abc'; expected a whole"):
+        check_policy(policy, path)
+    assert main(["policy-check", str(policy), "--robot-config", str(path)]) == 2
+    with pytest.raises(SettingError, match="use_degrees is 'maybe'; expected true or false"):
+        check_policy(policy, robot_file(tmp_path, "deg3.json", use_degrees="maybe"))
+    null = robot_file(tmp_path, "null.json", cameras={**as_text, "front": None})
+    with pytest.raises(SettingError, match=r"cameras\.front is None; expected the camera's"):
+        check_policy(policy, null)
+
+
+def test_a_policy_folder_that_is_not_there_is_named(tmp_path, capsys):
+    missing = tmp_path / "nope"
+    assert main(["policy-check", str(missing), "--robot-config", str(robot_file(tmp_path))]) == 2
+    err = capsys.readouterr().err
+    assert f"the policy folder {str(missing)!r} does not exist" in err
+    a_file = tmp_path / "model.safetensors"
+    a_file.write_bytes(b"")
+    with pytest.raises(SettingError, match="is not a folder; expected the folder"):
+        check_policy(a_file, robot_file(tmp_path))

@@ -20,7 +20,7 @@ import os
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from so101sim.errors import OutputPathError, SettingError
+from so101sim.robot import training_fps
 from so101sim.scenes import load_cameras, randomization
 from so101sim.validation import check_choice, check_count
 
@@ -46,6 +47,7 @@ TASK_TYPES = {
 MAX_EPISODES = 100_000
 MAX_WORKERS = 256
 Z95 = 1.959963984540054
+DEFAULT_FPS = 30
 
 
 @dataclass(frozen=True)
@@ -59,7 +61,8 @@ class EvalSettings:
     workers: int = 1
     randomize: str = "none"
     episode_length: int | None = None
-    fps: int = 30
+    fps: int | None = None
+    """Policy steps a simulated second: the training data's (its ``meta/info.json``), else 30."""
     output: str | None = None
     max_videos: int = 10
     device: str = "cpu"
@@ -67,12 +70,16 @@ class EvalSettings:
     """Where the policy's cameras of your own are (a TOML camera file, docs/cameras.md)."""
 
     def checked(self) -> EvalSettings:
+        """These settings checked, ``fps`` set (see its text).
+
+        Raises:
+            SettingError: a bad setting, or an ``fps`` the policy was not trained at.
+        """
         check_choice(self.task, "task", TASK_TYPES)
         check_count(self.episodes, "episodes", minimum=1, maximum=MAX_EPISODES)
         check_count(self.seed, "seed", maximum=2**62)
         check_count(self.workers, "workers", minimum=1, maximum=MAX_WORKERS)
         check_count(self.max_videos, "max_videos", maximum=MAX_EPISODES)
-        check_count(self.fps, "fps", minimum=1, maximum=500, unit=" Hz")
         if self.episode_length is not None:
             check_count(self.episode_length, "episode_length", minimum=1, maximum=1_000_000)
         randomization(self.randomize)  # a preset, or one with families changed: raises
@@ -81,6 +88,15 @@ class EvalSettings:
                 f"{self.policy!r} holds no config.json; expected a policy folder as "
                 f"lerobot-train saves it (.../checkpoints/last/pretrained_model)"
             )
+        trained_at = training_fps(self.policy)
+        fps = self.fps if self.fps is not None else trained_at or DEFAULT_FPS
+        check_count(fps, "fps", minimum=1, maximum=500, unit=" Hz")
+        if trained_at is not None and fps != trained_at:
+            raise SettingError(
+                f"fps = {fps}: the policy was trained on {trained_at} fps data (its dataset's "
+                f"meta/info.json), so it acts {trained_at} times a simulated second; expected "
+                f"{trained_at} (leave --fps out)"
+            )
         if self.camera_file is not None:
             load_cameras(self.camera_file)  # an unreadable file or a bad camera: said now
         if self.output is not None and Path(self.output, "eval.json").exists():
@@ -88,7 +104,7 @@ class EvalSettings:
                 f"{self.output!r} holds an earlier evaluation (eval.json, its failure videos); "
                 "expected a new folder for -o (or remove that one)"
             )
-        return self
+        return replace(self, fps=fps)
 
 
 @dataclass(frozen=True)
@@ -111,6 +127,8 @@ class EvalReport:
     outcomes: tuple[EpisodeOutcome, ...]
     wall_seconds: float
     workers: int
+    settings: EvalSettings | None = None
+    """What was run (checked: ``fps`` set), written to eval.json beside the results."""
 
     @property
     def episodes(self) -> int:
@@ -137,7 +155,18 @@ class EvalReport:
         from so101sim.model import servo_model  # imported here: it imports MuJoCo
 
         times = self.success_times
+        s = self.settings
+        run: dict[str, Any] = {}
+        if s is not None:
+            from so101sim.envs import episode_steps_limit  # imported here: it imports MuJoCo
+
+            fps = s.fps if s.fps is not None else DEFAULT_FPS
+            steps = s.episode_length or episode_steps_limit(s.task, fps)
+            run = {"policy": str(Path(s.policy).resolve()), "seed": s.seed, "fps": fps,
+                   "episode_length": steps, "camera_file": s.camera_file,
+                   "device": s.device}  # fmt: skip
         return {
+            **run,
             "task": self.task,
             "servo_model": servo_model(),  # the environments' default arm profile
             "randomize": self.randomize,
@@ -365,6 +394,7 @@ def evaluate_policy(
         outcomes=tuple(final),
         wall_seconds=time.perf_counter() - start,
         workers=settings.workers,
+        settings=settings,
     )
     if settings.output is not None:
         Path(settings.output, "eval.json").write_text(json.dumps(report.as_dict(), indent=1))

@@ -35,7 +35,7 @@ import shutil
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -179,6 +179,28 @@ def dataset_features(settings: DatasetSettings) -> dict[str, dict[str, Any]]:
     return features
 
 
+def _say_what_is_rendered(settings: DatasetSettings) -> None:
+    """A camera of your own whose file gives another size or frame rate than the dataset's is
+    recorded at the dataset's (``image_size``, ``fps``: one frame rate a dataset, the training
+    size for the images): logged, so that the file is not taken for what was recorded."""
+    h, w = settings.image_size
+    default = {f.name: f.default for f in fields(CameraSpec)}
+    for cam in settings.cameras:
+        if not isinstance(cam, CameraSpec):
+            continue
+        size = (cam.width, cam.height)
+        if size != (default["width"], default["height"]) and size != (w, h):
+            log.warning(
+                "camera %r: its file gives %dx%d; the dataset records it at %dx%d (--image-size)",
+                cam.name, cam.width, cam.height, w, h,
+            )  # fmt: skip
+        if cam.fps != settings.fps:
+            log.warning(
+                "camera %r: its file gives %g fps; the dataset records every camera at %d fps "
+                "(--fps)", cam.name, cam.fps, settings.fps,
+            )  # fmt: skip
+
+
 def _randomize_options(preset: str) -> dict[str, Any]:
     """The environments' keyword for a randomisation preset (``none``: nothing)."""
     randomization(preset)  # a preset, or one with families changed: raises
@@ -223,6 +245,7 @@ def generate_dataset(
         raise OutputPathError(
             f"{root} exists; expected a new folder (LeRobot does not overwrite a dataset)"
         )
+    _say_what_is_rendered(settings)
     try:
         root.parent.mkdir(parents=True, exist_ok=True)
         # the temporary folder's name stays within NAME_MAX however long root's name is
@@ -308,9 +331,13 @@ def generate_dataset(
                 "task": settings.task,
                 "servo_model": servo_model(),  # the environments' default arm profile
                 "settings": jsonable(asdict(settings)),
-                # the cameras as rendered (at --image-size): the rig to give eval or a real follower
+                # the cameras as rendered (at --image-size and --fps): the rig to give eval or
+                # a real follower
                 "cameras": jsonable(
-                    [asdict(c) for c in resolve_cameras(settings.cameras, settings.image_size)]
+                    [
+                        asdict(replace(c, fps=float(settings.fps)))
+                        for c in resolve_cameras(settings.cameras, settings.image_size)
+                    ]
                 ),
                 "episode_seeds": kept,
                 "failed_seeds": failed,

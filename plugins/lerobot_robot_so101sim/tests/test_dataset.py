@@ -140,7 +140,10 @@ def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take
     `so101sim policy-check` on the trained policy against a real follower's configs."""
     root = tmp_path / "ds"
     rig = tmp_path / "rig.toml"
-    rig.write_text("[top]\npos = [0.2, 0.0, 0.8]\nlookat = [0.2, 0.0, 0.0]\nfovy = 60\n")
+    rig.write_text(  # the real camera's size and frame rate: the dataset records its own
+        "[top]\npos = [0.2, 0.0, 0.8]\nlookat = [0.2, 0.0, 0.0]\nfovy = 60\n"
+        "width = 320\nheight = 240\nfps = 15\n"
+    )
     out = run(
         [tool("so101sim"), "dataset", "pick_cube", "--episodes", "3", "-o", str(root),
          "--cameras", f"{rig},wrist", "--image-size", "64x48", "--workers", "2",
@@ -151,10 +154,12 @@ def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take
     assert "Svt[" not in out and "moov atom" not in out  # no encoder or muxer chatter per video
     meta = json.loads((root / "meta" / "so101sim.json").read_text())
     assert meta["settings"]["cameras"][0]["pos"] == [0.2, 0.0, 0.8]  # the rig, kept with it
-    assert [(c["name"], c["width"], c["height"]) for c in meta["cameras"]] == [
-        ("top", 64, 48),
-        ("wrist", 64, 48),
+    assert [(c["name"], c["width"], c["height"], c["fps"]) for c in meta["cameras"]] == [
+        ("top", 64, 48, 30),
+        ("wrist", 64, 48, 30),
     ]  # fmt: skip  (as rendered)
+    assert "camera 'top': its file gives 320x240; the dataset records it at 64x48" in out
+    assert "camera 'top': its file gives 15 fps; the dataset records every camera at 30" in out
     ds = LeRobotDataset(REPO_ID, root=root)
     assert ds.features["observation.state"]["names"] == KEYS
     assert ds.features["action"]["names"] == KEYS
@@ -185,6 +190,9 @@ def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take
     capsys.readouterr()
     assert main(["eval", str(policy), "--episodes", "1", "-o", str(tmp_path / "no")]) == 2
     assert "camera file" in capsys.readouterr().err  # where is top? a camera file says
+    wrong_rate = ["--fps", "15", "--cameras", str(rig), "-o", str(tmp_path / "no")]
+    assert main(["eval", str(policy), "--episodes", "1", *wrong_rate]) == 2
+    assert "trained on 30 fps data" in capsys.readouterr().err  # its dataset's meta says
     evaluation = tmp_path / "eval"
     run(
         [tool("so101sim"), "eval", str(policy), "--episodes", "1", "--workers", "1",
@@ -193,6 +201,9 @@ def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take
     )  # fmt: skip
     report = json.loads((evaluation / "eval.json").read_text())
     assert report["episodes"] == 1
+    assert report["policy"] == str(policy.resolve()) and report["seed"] == 1000
+    assert report["fps"] == 30 and report["episode_length"] == 8  # what was run
+    assert report["camera_file"] == str(rig)
     import imageio.v3 as iio
 
     for ep in report["per_episode"]:

@@ -156,7 +156,11 @@ def add_learning_commands(sub: SubParsers) -> None:
     p.add_argument("--workers", type=int, help="worker processes (default: every core)")
     p.add_argument("--randomize", default="none", help=RANDOMIZE_HELP)
     p.add_argument("--episode-length", type=int, help="steps per episode (default: the task's)")
-    p.add_argument("--fps", type=int, default=30, help="policy steps per second (30)")
+    p.add_argument(
+        "--fps",
+        type=int,
+        help="policy steps per simulated second (default: its training data's, else 30)",
+    )
     p.add_argument("-o", "--output", help="folder for eval.json and the failures' videos")
     p.add_argument("--max-videos", type=int, default=10, help="failure videos at most (10)")
     p.add_argument("--device", default="cpu", help="torch device (cpu)")

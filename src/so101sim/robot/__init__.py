@@ -23,6 +23,7 @@ from .follower import (
     relative_caps,
 )
 from .helpers import MOTOR_KEYS
+from .policycheck import check_policy, training_fps
 from .scene import RobotScene, find_follower, robot_scene, scene_resets, when_connected
 
 __all__ = [
@@ -35,10 +36,12 @@ __all__ = [
     "SO101SimFollower",
     "SO101SimFollowerConfig",
     "SimCamera",
+    "check_policy",
     "find_follower",
     "parse_action",
     "relative_caps",
     "robot_scene",
     "scene_resets",
+    "training_fps",
     "when_connected",
 ]

@@ -95,8 +95,20 @@ def _read_mapping(path: Path, what: str) -> dict[str, Any]:
     return data
 
 
-def _policy_config(policy: Path) -> dict[str, Any]:
-    folder = policy if policy.is_dir() else policy.parent
+def _policy_folder(policy: Path) -> Path:
+    """The ``pretrained_model`` folder given (or the folder of its ``config.json``)."""
+    if policy.is_dir():
+        return policy
+    if policy.is_file() and policy.name == "config.json":
+        return policy.parent
+    what = "is not a folder" if policy.exists() else "does not exist"
+    raise SettingError(
+        f"the policy folder {str(policy)!r} {what}; expected the folder lerobot-train saved "
+        "the policy in (.../checkpoints/last/pretrained_model, with config.json)"
+    )
+
+
+def _policy_config(folder: Path) -> dict[str, Any]:
     cfg = _read_mapping(folder / "config.json", "the policy's config.json")
     if not isinstance(cfg.get("input_features"), dict):
         raise SettingError(
@@ -106,22 +118,51 @@ def _policy_config(policy: Path) -> dict[str, Any]:
     return cfg
 
 
-def _training_meta(policy: Path) -> tuple[dict[str, Any] | None, dict[str, Any] | None, str]:
-    """The training dataset's meta/info.json and meta/so101sim.json, or why they are not here."""
-    folder = policy if policy.is_dir() else policy.parent
-    train = folder / "train_config.json"
-    if not train.is_file():
-        return None, None, f"{train} is missing"
-    ds = _read_mapping(train, "the policy's train_config.json").get("dataset") or {}
-    root = ds.get("root")
-    if not root:
+def dataset_roots(folder: Path, root: str | Path) -> list[Path]:
+    """Where the training dataset of the policy in ``folder`` may be, given its ``root`` as
+    train_config.json keeps it (as it was given to lerobot-train): an absolute root as it is;
+    a relative one from the current folder, then from each folder above the policy's, nearest
+    first (lerobot-train ran in one of them when its ``--output_dir`` was relative, and a
+    dataset is usually kept beside the outputs)."""
+    root = Path(root)
+    if root.is_absolute():
+        return [root]
+    return [Path.cwd() / root, *(above / root for above in folder.resolve().parents)]
+
+
+def training_meta(folder: Path) -> tuple[dict[str, Any] | None, dict[str, Any] | None, str]:
+    """The training dataset's meta/info.json and meta/so101sim.json of the policy saved in
+    ``folder``, or (None, None, why they are not here).
+
+    Raises:
+        SettingError: train_config.json or the meta files unreadable."""
+    train_file = folder / "train_config.json"
+    if not train_file.is_file():
+        return None, None, f"{train_file} is missing"
+    train = _read_mapping(train_file, "the policy's train_config.json")
+    ds = train.get("dataset") or {}
+    if not isinstance(ds, dict) or not ds.get("root"):
         return None, None, f"train_config.json names dataset {ds.get('repo_id')!r} without a root"
-    meta = Path(root) / "meta"
-    if not (meta / "info.json").is_file():
-        return None, None, f"the training dataset {root} is not on this machine"
+    roots = dataset_roots(folder, str(ds["root"]))
+    meta = next((r / "meta" for r in roots if (r / "meta" / "info.json").is_file()), None)
+    if meta is None:
+        where = "" if len(roots) == 1 else ", nor in a folder above the policy's"
+        why = (
+            f"the training dataset (root {str(ds['root'])!r} in train_config.json) is not on "
+            f"this machine: no {roots[0] / 'meta' / 'info.json'}{where}"
+        )
+        return None, None, why
     info = _read_mapping(meta / "info.json", "the dataset's info.json")
     sim = meta / "so101sim.json"
     return info, _read_mapping(sim, "so101sim.json") if sim.is_file() else None, ""
+
+
+def training_fps(policy: str | Path) -> int | None:
+    """The frame rate of the data the policy saved at ``policy`` was trained on (its training
+    dataset's ``meta/info.json``), or None when that dataset is not here."""
+    info, _, _ = training_meta(_policy_folder(Path(policy)))
+    fps = (info or {}).get("fps")
+    return round(fps) if isinstance(fps, (int, float)) and not isinstance(fps, bool) else None
 
 
 def robot_section(config: Mapping[str, Any]) -> dict[str, Any]:
@@ -140,8 +181,45 @@ SIM_CAMERA_SIZE = (640, 480)
 """A simulated follower's camera size when its entry gives none (:mod:`so101sim.scenes`)."""
 
 
-def _camera_size(cam: Mapping[str, Any], sim: bool) -> tuple[Any, Any]:
-    w, h = cam.get("width"), cam.get("height")
+TRUE_WORDS = ("true", "yes", "on", "1")
+FALSE_WORDS = ("false", "no", "off", "0")
+MAX_CAMERA_NUMBER = 100_000
+
+
+def _as_bool(value: Any, name: str) -> bool:
+    """A true/false setting as LeRobot's config reader (draccus) takes it: a boolean, or a
+    word for one (``"false"`` is false)."""
+    if isinstance(value, bool):
+        return value
+    word = str(value).strip().lower() if isinstance(value, (str, int)) else None
+    if word in TRUE_WORDS + FALSE_WORDS:
+        return word in TRUE_WORDS
+    raise SettingError(f"the robot config's {name} is {value!r}; expected true or false")
+
+
+def _as_count(value: Any, name: str) -> int | None:
+    """A camera's width, height or fps as draccus reads them (``int | None``): a whole number,
+    or the digits of one; None when it is not set."""
+    if value is None:
+        return None
+    n: int | None = None
+    if isinstance(value, int) and not isinstance(value, bool):
+        n = value
+    elif isinstance(value, float) and value.is_integer():
+        n = int(value)
+    elif isinstance(value, str) and value.strip().isdigit():
+        n = int(value.strip())
+    if n is None or not 0 < n <= MAX_CAMERA_NUMBER:
+        raise SettingError(
+            f"the robot config's {name} is {value!r}; expected a whole number from 1 to "
+            f"{MAX_CAMERA_NUMBER}"
+        )
+    return n
+
+
+def _camera_size(cam: Mapping[str, Any], name: str, sim: bool) -> tuple[Any, Any]:
+    w = _as_count(cam.get("width"), f"cameras.{name}.width")
+    h = _as_count(cam.get("height"), f"cameras.{name}.height")
     if sim:
         return w or SIM_CAMERA_SIZE[0], h or SIM_CAMERA_SIZE[1]
     return w, h
@@ -156,24 +234,31 @@ def _check_cameras(
         return [Finding("cameras", f"robot cameras = {cameras!r}; expected {{name: {{...}}}}")]
     wanted = {k.removeprefix("observation.images."): v for k, v in inputs.items()
               if k.startswith("observation.images.")}  # fmt: skip
+    for name, cam in cameras.items():
+        if not isinstance(cam, dict):
+            raise SettingError(
+                f"the robot config's cameras.{name} is {cam!r}; expected the camera's settings "
+                "({type: opencv, index_or_path: ..., width: ..., height: ..., fps: ...})"
+            )
     for name, ft in wanted.items():
         shape = list(ft.get("shape") or [])
         h, w = (shape[1], shape[2]) if len(shape) == 3 else (None, None)
         cam = cameras.get(name)
-        if not isinstance(cam, dict):
+        if cam is None:
             have = ", ".join(sorted(cameras)) or "none"
             out.append(Finding("camera", f"missing camera {name!r}: the policy reads "
                        f"observation.images.{name} ({w}x{h}); the robot has {have}: add "
                        f"cameras.{name} (or rename one)"))  # fmt: skip
             continue
-        cw, ch = _camera_size(cam, robot.get("type") in SIM_TYPES)
+        cw, ch = _camera_size(cam, name, robot.get("type") in SIM_TYPES)
         if (cw, ch) != (w, h):
             got = "not set (the camera's default)" if cw is None or ch is None else f"{cw}x{ch}"
             out.append(Finding("resolution", f"camera {name!r}: {got}, the policy was trained "
                        f"on {w}x{h} (width x height): set width={w}, height={h} (LeRobot does "
                        "not resize a camera's frames for a policy)"))  # fmt: skip
-        if fps is not None and cam.get("fps") is not None and int(cam["fps"]) != int(fps):
-            out.append(Finding("fps", f"camera {name!r} runs at {cam['fps']} fps, the policy was "
+        cam_fps = _as_count(cam.get("fps"), f"cameras.{name}.fps")
+        if fps is not None and cam_fps is not None and cam_fps != fps:
+            out.append(Finding("fps", f"camera {name!r} runs at {cam_fps} fps, the policy was "
                        f"trained on {fps} fps data: set fps={fps}"))  # fmt: skip
     for name in sorted(set(cameras) - set(wanted)):
         notes.append(f"camera {name!r} is not an input of the policy (recorded, never read)")
@@ -189,10 +274,12 @@ def check_policy(policy: str | Path, robot_config: str | Path) -> PolicyCheck:
         MissingDependencyError: a YAML file without PyYAML.
     """
     policy, robot_config = Path(policy), Path(robot_config)
-    cfg = _policy_config(policy)
+    folder = _policy_folder(policy)
+    cfg = _policy_config(folder)
     robot = robot_section(_read_mapping(robot_config, "the robot config"))
+    use_degrees = _as_bool(robot.get("use_degrees", USE_DEGREES_DEFAULT), "use_degrees")
     inputs: dict[str, Any] = cfg["input_features"]
-    info, sim_meta, why = _training_meta(policy)
+    info, sim_meta, why = training_meta(folder)
     notes: list[str] = []
     out: list[Finding] = []
     kind = str(robot["type"])
@@ -214,6 +301,7 @@ def check_policy(policy: str | Path, robot_config: str | Path) -> PolicyCheck:
         notes.append(f"state names, units and fps not checked: {why}")
     else:
         fps = info.get("fps")
+        fps = round(fps) if isinstance(fps, (int, float)) and not isinstance(fps, bool) else None
         names = ((info.get("features") or {}).get("observation.state") or {}).get("names")
         if isinstance(names, dict):  # older datasets: {"motors": [...]}
             names = next(iter(names.values()), None)
@@ -221,7 +309,7 @@ def check_policy(policy: str | Path, robot_config: str | Path) -> PolicyCheck:
             out.append(Finding("state", f"the policy's state names {list(names)}; the follower's "
                        f"are {list(FOLLOWER_STATE_NAMES)}"))  # fmt: skip
         if sim_meta is not None:
-            if not robot.get("use_degrees", USE_DEGREES_DEFAULT):
+            if not use_degrees:
                 out.append(Finding("units", "use_degrees is false (range mode, -100..100): the "
                            "policy was trained on so101sim data in degrees (gripper 0..100); "
                            "set use_degrees: true"))  # fmt: skip
@@ -231,4 +319,13 @@ def check_policy(policy: str | Path, robot_config: str | Path) -> PolicyCheck:
     return PolicyCheck(policy, robot_config, tuple(out), tuple(notes))
 
 
-__all__ = ["FOLLOWER_STATE_NAMES", "Finding", "PolicyCheck", "check_policy", "robot_section"]
+__all__ = [
+    "FOLLOWER_STATE_NAMES",
+    "Finding",
+    "PolicyCheck",
+    "check_policy",
+    "dataset_roots",
+    "robot_section",
+    "training_fps",
+    "training_meta",
+]
