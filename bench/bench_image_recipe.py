@@ -121,6 +121,7 @@ def pretrain(args: argparse.Namespace, root: Path, out: Path) -> dict:
     report = out / "pretrain.json"
     if report.exists():
         made = json.loads(report.read_text())["settings"]
+        made["dataset"] = str(Path(made["dataset"]).resolve())  # however it was named
         want = {"steps": args.pretrain_steps, "seed": args.seed, "dataset": str(root)}
         same(out, made, want)
         return {"wall_s": None} | json.loads(report.read_text())["report"]
@@ -137,7 +138,7 @@ def train(args: argparse.Namespace, root: Path, out: Path, backbone: Path | None
     last = out / "checkpoints" / f"{args.steps:06d}" / "pretrained_model"
     if (last / "model.safetensors").exists() and (last / "train_config.json").exists():
         made = json.loads((last / "train_config.json").read_text())
-        made |= {"root": made["dataset"]["root"],
+        made |= {"root": str(Path(made["dataset"]["root"]).resolve()),  # however it was named
                  "inputs": sorted(made["policy"]["input_features"])}  # fmt: skip
         want = {"seed": args.seed, "steps": args.steps, "root": str(root),
                 "inputs": sorted(INPUTS[args.inputs])}  # fmt: skip
@@ -238,7 +239,7 @@ def main() -> None:
     if bad:
         raise SystemExit(f"--checkpoints {bad}: expected multiples of --save-freq below --steps")
 
-    work = Path(args.work)
+    work = Path(args.work).resolve()  # the commands are given absolute paths
     work.mkdir(parents=True, exist_ok=True)
     only = "" if args.inputs == "joints+cameras" else "_cameras"  # the recipe's own: train_sN
     pre = "_pre" if args.pretrain_steps else ""

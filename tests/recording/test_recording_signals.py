@@ -96,7 +96,7 @@ def test_a_second_signal_while_the_files_are_finished_waits(monkeypatch, tmp_pat
     assert cli.main(_record(tmp_path)) == 130  # the first signal says how it ended
     captured = capfd.readouterr()  # the notice is written to file descriptor 2
     _assert_complete(tmp_path, captured.out, 0.3)
-    assert "finishing the output files first" in captured.err
+    assert "finishing with the output files first" in captured.err
 
 
 def test_a_signal_while_a_finished_run_writes_its_files_is_honoured_after(

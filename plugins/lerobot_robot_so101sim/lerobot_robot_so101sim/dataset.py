@@ -28,6 +28,7 @@ dataset is written to a temporary folder beside ``root`` and moved there when co
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
@@ -104,11 +105,16 @@ class DatasetSettings:
         """These settings, each checked with its bounds.
 
         Raises:
-            SettingError: a value out of range (the message says what was expected).
+            SettingError: a value out of range (the message says what was expected);
+            OutputPathError: ``root`` exists or is not a path.
         """
         check_choice(self.task, "task", TASK_TEXT)  # the tasks a follower's expert records
         # empty, NUL, a name or path too long: refused before anything touches the disk
-        checked_path(self.root, "dataset folder", error=OutputPathError)
+        root = checked_path(self.root, "dataset folder", error=OutputPathError)
+        if root.exists():
+            raise OutputPathError(
+                f"{root} exists; expected a new folder (LeRobot does not overwrite a dataset)"
+            )
         check_count(self.episodes, "episodes", minimum=1, maximum=MAX_EPISODES)
         check_count(self.seed, "seed", maximum=2**62)
         check_count(self.fps, "fps", minimum=1, maximum=500, unit=" Hz")
@@ -201,6 +207,17 @@ def _say_what_is_rendered(settings: DatasetSettings) -> None:
             )  # fmt: skip
 
 
+def _abandon(dataset: Any) -> None:
+    """Stop LeRobot's writer of a dataset left unfinished (an error, Ctrl-C) while its folder
+    is still there: its encoder's episode cancelled, its files closed. Left to itself, the
+    writer finalizes when it is garbage-collected, which writes the metadata again into a
+    folder already removed."""
+    with contextlib.suppress(Exception):
+        dataset.clear_episode_buffer()  # cancels the streaming encoder's episode
+    with contextlib.suppress(Exception):
+        dataset.finalize()
+
+
 def _randomize_options(preset: str) -> dict[str, Any]:
     """The environments' keyword for a randomisation preset (``none``: nothing)."""
     randomization(preset)  # a preset, or one with families changed: raises
@@ -241,10 +258,6 @@ def generate_dataset(
     datasets.disable_progress_bars()  # the caller shows the progress
     settings = settings.checked()
     root = checked_path(settings.root, "dataset folder", error=OutputPathError)
-    if root.exists():
-        raise OutputPathError(
-            f"{root} exists; expected a new folder (LeRobot does not overwrite a dataset)"
-        )
     _say_what_is_rendered(settings)
     try:
         root.parent.mkdir(parents=True, exist_ok=True)
@@ -262,6 +275,7 @@ def generate_dataset(
     frames = 0
     sim_seconds = 0.0
     # LeRobot's writer, made to keep up with the workers (.writer)
+    dataset = None
     with fast_writer():
         try:
             dataset = LeRobotDataset.create(
@@ -346,6 +360,10 @@ def generate_dataset(
             }
             (tmp / "dataset" / "meta" / "so101sim.json").write_text(json.dumps(meta, indent=1))
             os.replace(tmp / "dataset", root)
+        except BaseException:
+            if dataset is not None:
+                _abandon(dataset)
+            raise
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
     return DatasetReport(

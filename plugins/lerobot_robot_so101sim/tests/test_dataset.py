@@ -60,6 +60,28 @@ def test_the_same_seeds_give_the_same_episodes_whatever_the_worker_count(tmp_pat
     assert sorted(p.name for p in tmp_path.iterdir()) == ["one", "two"]  # nothing half-done
 
 
+def test_a_dataset_stopped_part_way_leaves_nothing_behind(tmp_path):
+    """Ctrl-C after an episode was written (LeRobot's writer then holds open files and a
+    streaming video encoder): no dataset, and no hidden temporary folder, even after the
+    writer is garbage-collected (it finalizes itself then)."""
+    import gc
+
+    seen: list[int] = []
+
+    def interrupt_at_the_second(ep) -> None:
+        seen.append(ep.seed)
+        if len(seen) == 2:
+            raise KeyboardInterrupt
+
+    settings = DatasetSettings(root=str(tmp_path / "ds"), task="pick_cube", episodes=3,
+                               cameras=("wrist",), image_size=(48, 64), workers=1)  # fmt: skip
+    with pytest.raises(KeyboardInterrupt) as stopped:
+        generate_dataset(settings, progress=interrupt_at_the_second)
+    del stopped  # its traceback holds the writer
+    gc.collect()
+    assert seen == [0, 1] and list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.cli
 def test_so101sim_dataset_trains_with_lerobot_train_and_evaluates(tmp_path):
     """The CI path: 3 episodes with `so101sim dataset` in the LeRobot venv, read by

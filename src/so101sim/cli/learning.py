@@ -258,7 +258,7 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         use_ray=args.ray is not None,
         ray_address=args.ray or "local",
         video=not args.no_video,
-    )
+    ).checked()  # every setting before the bar: an error is its only line
 
     def run(bar: Any) -> Any:
         def progress(episode: Any) -> None:
@@ -347,7 +347,10 @@ def cmd_pretrain_backbone(args: argparse.Namespace) -> int:
         f"{report.front_error_mm:.1f} mm (guessing the mean: {report.front_baseline_mm:.1f}), "
         f"from the gripper {report.wrist_error_mm:.1f} mm ({report.wrist_baseline_mm:.1f})"
     )
-    say(f"next: lerobot-train --policy.path={report.output} --dataset.root={args.dataset} ...")
+    say(
+        f"next: lerobot-train --policy.path={report.output} --dataset.repo_id={args.repo_id} "
+        f"--dataset.root={args.dataset} ..."
+    )
     return 0
 
 

@@ -178,7 +178,10 @@ class _Signals:
             _notice("so101sim: output files left unfinished\n")
             raise SystemExit(128 + signum)
         more = "twice more" if len(self.waiting) == 1 else "once more"
-        _notice(f"so101sim: finishing the output files first (signal {more} to drop them)\n")
+        _notice(
+            f"so101sim: finishing with the output files first (signal {more} to stop at once, "
+            "leaving them as they are)\n"
+        )
 
 
 def _notice(text: str) -> None:
