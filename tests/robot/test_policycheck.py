@@ -14,7 +14,7 @@ import pytest
 
 from so101sim.cli.main import main
 from so101sim.errors import SettingError
-from so101sim.robot.policycheck import FOLLOWER_STATE_NAMES, check_policy
+from so101sim.robot.policycheck import FOLLOWER_STATE_NAMES, check_policy, training_fps
 
 NAMES = list(FOLLOWER_STATE_NAMES)
 
@@ -171,6 +171,13 @@ def test_values_are_read_as_lerobots_config_reader_reads_them(tmp_path, capsys):
     result = check_policy(policy, robot_file(tmp_path, "deg.json", use_degrees="false"))
     assert [f.what for f in result.mismatches] == ["units"]
     assert check_policy(policy, robot_file(tmp_path, "deg2.json", use_degrees="true")).ok
+    for refused in ("yes", "TRUE", 1, 0.0):  # draccus takes no other spelling
+        with pytest.raises(SettingError, match="expected true or false"):
+            check_policy(policy, robot_file(tmp_path, "deg4.json", use_degrees=refused))
+    for width in (160.0, "²", "1e3", True, [160]):  # nor a float, nor a non-ASCII digit
+        cams = {**as_text, "front": {**as_text["front"], "width": width}}
+        with pytest.raises(SettingError, match=r"cameras\.front\.width is .*; expected a whole"):
+            check_policy(policy, robot_file(tmp_path, "w.json", cameras=cams))
     bad_fps = {**as_text, "front": {**as_text["front"], "fps": "abc"}}
     path = robot_file(tmp_path, "fps.json", cameras=bad_fps)
     with pytest.raises(SettingError, match=r"cameras\.front\.fps is 'abc'; expected a whole"):
@@ -192,3 +199,20 @@ def test_a_policy_folder_that_is_not_there_is_named(tmp_path, capsys):
     a_file.write_bytes(b"")
     with pytest.raises(SettingError, match="is not a folder; expected the folder"):
         check_policy(a_file, robot_file(tmp_path))
+
+
+def test_a_training_config_or_dataset_meta_out_of_shape_is_a_note_not_a_crash(tmp_path):
+    policy = write_policy(tmp_path)
+    robot = robot_file(tmp_path)
+    info = tmp_path / "data" / "meta" / "info.json"
+    for fps in ("NaN", "Infinity", "0", "-30"):  # json reads NaN and Infinity
+        info.write_text(info.read_text().replace('"fps": 30', '"fps": ' + fps, 1))
+        assert check_policy(policy, robot).ok  # the camera's fps is not checked against it
+        assert training_fps(policy) is None
+        info.write_text(info.read_text().replace('"fps": ' + fps, '"fps": 30', 1))
+    assert training_fps(policy) == 30
+    train = policy / "train_config.json"
+    for dataset in ('"data"', "[1]", "3"):
+        train.write_text('{"dataset": ' + dataset + "}")
+        notes = check_policy(policy, robot).notes
+        assert any("not a mapping with a root" in n for n in notes), notes

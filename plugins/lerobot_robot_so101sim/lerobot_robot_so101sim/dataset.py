@@ -200,7 +200,7 @@ def _say_what_is_rendered(settings: DatasetSettings) -> None:
                 "camera %r: its file gives %dx%d; the dataset records it at %dx%d (--image-size)",
                 cam.name, cam.width, cam.height, w, h,
             )  # fmt: skip
-        if cam.fps != settings.fps:
+        if cam.fps != default["fps"] and cam.fps != settings.fps:
             log.warning(
                 "camera %r: its file gives %g fps; the dataset records every camera at %d fps "
                 "(--fps)", cam.name, cam.fps, settings.fps,

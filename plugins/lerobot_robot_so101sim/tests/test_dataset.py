@@ -150,7 +150,9 @@ def test_a_dataset_over_a_local_ray_with_two_workers_equals_the_local_one(tmp_pa
     for key in a:
         np.testing.assert_array_equal(a[key], b[key], err_msg=key)
     with pytest.raises(SettingError, match="ray_address"):
-        DatasetSettings(root="x", task="pick_cube", episodes=1, ray_address="").checked()
+        DatasetSettings(
+            root=str(tmp_path / "x"), task="pick_cube", episodes=1, ray_address=""
+        ).checked()
 
 
 @pytest.mark.cli

@@ -20,6 +20,7 @@ could not check. It reads JSON and YAML only: no LeRobot, no torch.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -127,7 +128,9 @@ def dataset_roots(folder: Path, root: str | Path) -> list[Path]:
     root = Path(root)
     if root.is_absolute():
         return [root]
-    return [Path.cwd() / root, *(above / root for above in folder.resolve().parents)]
+    # the folders above the policy's as named (a symlinked outputs/ too) and as they really are
+    above = [*folder.absolute().parents, *folder.resolve().parents]
+    return list(dict.fromkeys([Path.cwd() / root, *(d / root for d in above)]))
 
 
 def training_meta(folder: Path) -> tuple[dict[str, Any] | None, dict[str, Any] | None, str]:
@@ -141,7 +144,9 @@ def training_meta(folder: Path) -> tuple[dict[str, Any] | None, dict[str, Any] |
         return None, None, f"{train_file} is missing"
     train = _read_mapping(train_file, "the policy's train_config.json")
     ds = train.get("dataset") or {}
-    if not isinstance(ds, dict) or not ds.get("root"):
+    if not isinstance(ds, dict):
+        return None, None, f"train_config.json's dataset is {ds!r}, not a mapping with a root"
+    if not ds.get("root"):
         return None, None, f"train_config.json names dataset {ds.get('repo_id')!r} without a root"
     roots = dataset_roots(folder, str(ds["root"]))
     meta = next((r / "meta" for r in roots if (r / "meta" / "info.json").is_file()), None)
@@ -161,8 +166,15 @@ def training_fps(policy: str | Path) -> int | None:
     """The frame rate of the data the policy saved at ``policy`` was trained on (its training
     dataset's ``meta/info.json``), or None when that dataset is not here."""
     info, _, _ = training_meta(_policy_folder(Path(policy)))
-    fps = (info or {}).get("fps")
-    return round(fps) if isinstance(fps, (int, float)) and not isinstance(fps, bool) else None
+    return _frame_rate((info or {}).get("fps"))
+
+
+def _frame_rate(fps: Any) -> int | None:
+    """A dataset's ``fps`` as a whole number of frames a second, or None when it is not a
+    finite positive number (then it is not checked)."""
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)):
+        return None
+    return round(fps) if math.isfinite(fps) and 0.5 <= fps <= 10_000 else None
 
 
 def robot_section(config: Mapping[str, Any]) -> dict[str, Any]:
@@ -181,33 +193,31 @@ SIM_CAMERA_SIZE = (640, 480)
 """A simulated follower's camera size when its entry gives none (:mod:`so101sim.scenes`)."""
 
 
-TRUE_WORDS = ("true", "yes", "on", "1")
-FALSE_WORDS = ("false", "no", "off", "0")
 MAX_CAMERA_NUMBER = 100_000
 
 
 def _as_bool(value: Any, name: str) -> bool:
-    """A true/false setting as LeRobot's config reader (draccus) takes it: a boolean, or a
-    word for one (``"false"`` is false)."""
+    """A true/false setting as LeRobot's config reader (draccus) takes it: a boolean, or the
+    word ``"true"`` or ``"false"`` (nothing else: it refuses ``"yes"``, ``1``, ``"TRUE"``)."""
     if isinstance(value, bool):
         return value
-    word = str(value).strip().lower() if isinstance(value, (str, int)) else None
-    if word in TRUE_WORDS + FALSE_WORDS:
-        return word in TRUE_WORDS
-    raise SettingError(f"the robot config's {name} is {value!r}; expected true or false")
+    if value in ("true", "false"):
+        return value == "true"
+    raise SettingError(
+        f"the robot config's {name} is {value!r}; expected true or false (LeRobot's config "
+        "reader takes nothing else)"
+    )
 
 
 def _as_count(value: Any, name: str) -> int | None:
     """A camera's width, height or fps as draccus reads them (``int | None``): a whole number,
-    or the digits of one; None when it is not set."""
+    or the digits of one (not a float: LeRobot refuses ``160.0``); None when it is not set."""
     if value is None:
         return None
     n: int | None = None
     if isinstance(value, int) and not isinstance(value, bool):
         n = value
-    elif isinstance(value, float) and value.is_integer():
-        n = int(value)
-    elif isinstance(value, str) and value.strip().isdigit():
+    elif isinstance(value, str) and value.strip().isdecimal() and value.strip().isascii():
         n = int(value.strip())
     if n is None or not 0 < n <= MAX_CAMERA_NUMBER:
         raise SettingError(
@@ -300,8 +310,7 @@ def check_policy(policy: str | Path, robot_config: str | Path) -> PolicyCheck:
     if info is None:
         notes.append(f"state names, units and fps not checked: {why}")
     else:
-        fps = info.get("fps")
-        fps = round(fps) if isinstance(fps, (int, float)) and not isinstance(fps, bool) else None
+        fps = _frame_rate(info.get("fps"))
         names = ((info.get("features") or {}).get("observation.state") or {}).get("names")
         if isinstance(names, dict):  # older datasets: {"motors": [...]}
             names = next(iter(names.values()), None)
