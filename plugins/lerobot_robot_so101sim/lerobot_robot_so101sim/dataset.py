@@ -36,7 +36,7 @@ import shutil
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -190,17 +190,16 @@ def _say_what_is_rendered(settings: DatasetSettings) -> None:
     recorded at the dataset's (``image_size``, ``fps``: one frame rate a dataset, the training
     size for the images): logged, so that the file is not taken for what was recorded."""
     h, w = settings.image_size
-    default = {f.name: f.default for f in fields(CameraSpec)}
     for cam in settings.cameras:
         if not isinstance(cam, CameraSpec):
             continue
         size = (cam.width, cam.height)
-        if size != (default["width"], default["height"]) and size != (w, h):
+        if size != (CameraSpec.width, CameraSpec.height) and size != (w, h):
             log.warning(
                 "camera %r: its file gives %dx%d; the dataset records it at %dx%d (--image-size)",
                 cam.name, cam.width, cam.height, w, h,
             )  # fmt: skip
-        if cam.fps != default["fps"] and cam.fps != settings.fps:
+        if cam.fps != CameraSpec.fps and cam.fps != settings.fps:
             log.warning(
                 "camera %r: its file gives %g fps; the dataset records every camera at %d fps "
                 "(--fps)", cam.name, cam.fps, settings.fps,

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import MissingDependencyError, SettingError
+from ..scenes import CameraSpec
 from ..units import JOINT_NAMES
 from ..validation import check_input_file
 
@@ -189,7 +190,7 @@ def robot_section(config: Mapping[str, Any]) -> dict[str, Any]:
     return robot
 
 
-SIM_CAMERA_SIZE = (640, 480)
+SIM_CAMERA_SIZE = (CameraSpec.width, CameraSpec.height)
 """A simulated follower's camera size when its entry gives none (:mod:`so101sim.scenes`)."""
 
 
