@@ -1,12 +1,14 @@
 """How fast ``so101sim dataset`` writes an image dataset: simulated seconds per wall second.
 
     PYTHONPATH=src:plugins/lerobot_robot_so101sim python bench/bench_dataset_images.py \
-        [--episodes 8] [--workers 1,2] [--size 160x120] [--storage video,png] [--out FILE]
+        [--episodes 8] [--workers 1,2] [--size 160x120] [--storage h264,libsvtav1,png] \
+        [--out FILE]
 
-For each worker count and image storage (AV1 ``video`` as lerobot-record writes, or ``png``
-frames in the data files), writes ``--episodes`` episodes of ``pick_cube`` with the ``front``
-and ``wrist`` cameras at ``--size`` (WIDTHxHEIGHT) through ``generate_dataset`` into a
-temporary folder and prints the ratio to real time, the wall time and the load average (1 min)
+For each worker count and image storage (videos in a codec: ``h264``, the default, or
+``libsvtav1``, AV1 as lerobot-record writes; or ``png`` frames in the data files), writes
+``--episodes`` episodes of ``pick_cube`` with the ``front`` and ``wrist`` cameras at ``--size``
+(WIDTHxHEIGHT) through ``generate_dataset`` into a temporary folder and prints the ratio to
+real time, the wall time and the load average (1 min)
 before and after: on a shared machine the ratio depends on the load, so read them together.
 It also prints the CPU seconds spent (this process and its workers) per simulated second,
 which the load changes much less, and the ratio to real time two free cores would give at that
@@ -53,7 +55,7 @@ def cpu_seconds() -> float:
     return total
 
 
-def one_run(episodes: int, workers: int, size: tuple[int, int], video: bool) -> dict:
+def one_run(episodes: int, workers: int, size: tuple[int, int], storage: str) -> dict:
     from lerobot_robot_so101sim.dataset import DatasetSettings, generate_dataset
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -61,7 +63,8 @@ def one_run(episodes: int, workers: int, size: tuple[int, int], video: bool) -> 
         cpu0 = cpu_seconds()
         settings = DatasetSettings(
             task="pick_cube", episodes=episodes, root=str(Path(tmp) / "ds"),
-            cameras=("front", "wrist"), image_size=size, workers=workers, video=video,
+            cameras=("front", "wrist"), image_size=size, workers=workers,
+            video=storage != "png", vcodec="h264" if storage == "png" else storage,
         )  # fmt: skip
         report = generate_dataset(settings)
         cpu = cpu_seconds() - cpu0
@@ -70,7 +73,7 @@ def one_run(episodes: int, workers: int, size: tuple[int, int], video: bool) -> 
             "cpu_s_per_sim_s": round(cpu / report.sim_seconds, 3),
             "x_real_time_if_2_free_cores": round(2 * report.sim_seconds / cpu, 2),
             "workers": workers,
-            "storage": "video" if video else "png",
+            "storage": storage,
             "episodes": report.episodes,
             "frames": report.frames,
             "sim_s": round(report.sim_seconds, 1),
@@ -86,7 +89,7 @@ def main() -> None:
     p.add_argument("--episodes", type=int, default=8)
     p.add_argument("--workers", default="1,2")
     p.add_argument("--size", default="160x120", help="WIDTHxHEIGHT")
-    p.add_argument("--storage", default="video,png")
+    p.add_argument("--storage", default="h264,libsvtav1", help="h264, libsvtav1 or png (a list)")
     p.add_argument("--out", help="also write the results as JSON here")
     args = p.parse_args()
     w, h = (int(v) for v in args.size.split("x"))
@@ -96,7 +99,7 @@ def main() -> None:
     print(json.dumps(rows[0]), flush=True)
     for storage in args.storage.split(","):
         for workers in (int(n) for n in args.workers.split(",")):
-            row = one_run(args.episodes, workers, (h, w), storage == "video")
+            row = one_run(args.episodes, workers, (h, w), storage)
             rows.append(row)
             print(json.dumps(row), flush=True)
     if args.out:

@@ -18,7 +18,7 @@ parallel and hand their frames back; this process writes them, in seed order, th
 LeRobot's own writer (``LeRobotDataset.create``, ``add_frame``, ``save_episode``,
 ``finalize``; videos encoded as the frames arrive, on a thread: ``streaming_encoding``), so
 the dataset is the same for the same seeds whatever the worker count (:mod:`.episodes`). With
-``video=False`` the images are stored as PNG frames in the data files instead of AV1 videos:
+``video=False`` the images are stored as PNG frames in the data files instead of videos:
 larger, and slower to train on with action chunks (LeRobot 0.6.1 reads a chunk's rows whole,
 decoding each row's images). The
 dataset is written to a temporary folder beside ``root`` and moved there when complete
@@ -72,6 +72,17 @@ MAX_EPISODES = 100_000
 MAX_WORKERS = 256
 MAX_IMAGE_SIDE = 1024
 ENCODER_THREADS = 1
+VIDEO_CODECS: dict[str, dict[str, Any]] = {
+    "h264": {"vcodec": "h264", "preset": "ultrafast", "crf": 20},
+    "libsvtav1": {"vcodec": "libsvtav1"},
+    "av1": {"vcodec": "libsvtav1"},
+}
+"""The video codecs (``vcodec``) and the encoder settings each is given, through LeRobot's
+``RGBEncoderConfig`` (``--dataset.rgb_encoder.*`` of ``lerobot-record``). ``h264`` (the
+default): x264's fastest preset at a quality (``crf`` 20) that keeps the rendered frames at
+least as close to the raw images as AV1 at LeRobot's settings does, for about a third of the
+encoding CPU. ``libsvtav1`` (or ``av1``): what ``lerobot-record`` writes by default (SVT-AV1,
+preset 12, ``crf`` 30). LeRobot trains on either (docs/learning.md: measured)."""
 """Threads of the video encoder (streaming: it runs beside the workers on the same cores)."""
 MOTOR_NAMES = [f"{j}.pos" for j in JOINT_NAMES]
 OBJECT_FIELDS = ("x", "y", "z", "qw", "qx", "qy", "qz")
@@ -100,6 +111,8 @@ class DatasetSettings:
     """With ``use_ray``: "local" (start a Ray cluster here with ``workers`` CPUs), "auto" (one
     running on this machine) or a cluster's ``host:port`` / ``ray://host:port``."""
     video: bool = True
+    vcodec: str = "h264"
+    """The videos' codec: ``h264`` or ``libsvtav1`` (``av1``), see :data:`VIDEO_CODECS`."""
 
     def checked(self) -> DatasetSettings:
         """These settings, each checked with its bounds.
@@ -119,6 +132,7 @@ class DatasetSettings:
         check_count(self.seed, "seed", maximum=2**62)
         check_count(self.fps, "fps", minimum=1, maximum=500, unit=" Hz")
         check_count(self.workers, "workers", minimum=1, maximum=MAX_WORKERS)
+        check_choice(self.vcodec, "vcodec", VIDEO_CODECS)
         for cam in self.cameras:
             if not isinstance(cam, CameraSpec):
                 check_choice(cam, "camera", PRESET_CAMERAS)
@@ -248,6 +262,7 @@ def generate_dataset(
         SettingError: a bad setting; OutputPathError: ``root`` exists or cannot be written.
     """
     import datasets
+    from lerobot.configs.video import RGBEncoderConfig
     from lerobot.datasets import LeRobotDataset
 
     from so101sim.envs import episode_steps_limit  # imported here: it imports MuJoCo
@@ -289,6 +304,7 @@ def generate_dataset(
                 # writer keeps taking the workers' episodes while the encoder works
                 streaming_encoding=settings.video and bool(settings.cameras),
                 encoder_threads=ENCODER_THREADS,
+                rgb_encoder=RGBEncoderConfig(**VIDEO_CODECS[settings.vcodec]),
                 # room for a whole episode's frames: LeRobot drops a frame (a warning, and a video
                 # shorter than the episode) when its encoder's queue stays full for 0.1 s, which a
                 # busy machine does when the frames come faster than real time, as they do here
@@ -378,6 +394,7 @@ def generate_dataset(
 
 
 __all__ = [
+    "VIDEO_CODECS",
     "DatasetReport",
     "DatasetSettings",
     "Episode",

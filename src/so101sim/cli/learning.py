@@ -116,8 +116,14 @@ def add_learning_commands(sub: SubParsers) -> None:
     p.add_argument(
         "--no-video",
         action="store_true",
-        help="store the images as PNG frames in the data files, not as AV1 videos (larger, and "
+        help="store the images as PNG frames in the data files, not as videos (larger, and "
         "slower to train ACT on: LeRobot decodes every row of an action chunk's images)",
+    )
+    p.add_argument(
+        "--vcodec",
+        default="h264",
+        help="the videos' codec: h264 (default: x264's fastest preset, crf 20) or libsvtav1 "
+        "(av1: what lerobot-record writes by default; about a third slower to write here)",
     )
     p.add_argument("--randomize", default="none", help=RANDOMIZE_HELP)
     p.add_argument(
@@ -258,6 +264,7 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         use_ray=args.ray is not None,
         ray_address=args.ray or "local",
         video=not args.no_video,
+        vcodec=args.vcodec,
     ).checked()  # every setting before the bar: an error is its only line
 
     def run(bar: Any) -> Any:
