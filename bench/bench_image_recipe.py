@@ -105,15 +105,21 @@ def dataset(args: argparse.Namespace, root: Path) -> dict:
         made.setdefault("environment_state", False)
         same(root, made, want)
         info = json.loads((root / "meta" / "info.json").read_text())
-        return {"wall_s": None, "episodes": info["total_episodes"], "frames": info["total_frames"]}
+        return {"wall_s": None} | made_of(info)
     cmd = [tool("so101sim"), "dataset", "pick_cube", "--episodes", str(args.episodes),
            "-o", str(root), "--cameras", "front,wrist", "--image-size", "160x120",
            "--randomize", RANDOMIZE, "--no-progress"]  # fmt: skip
     if env_state:
         cmd.append("--environment-state")
     result = timed(cmd, root.parent / f"{root.name}.log")
-    info = json.loads((root / "meta" / "info.json").read_text())
-    return result | {"episodes": info["total_episodes"], "frames": info["total_frames"]}
+    return result | made_of(json.loads((root / "meta" / "info.json").read_text()))
+
+
+def made_of(info: dict) -> dict:
+    """A dataset's episodes, frames and video codec, from its ``meta/info.json``."""
+    front = info["features"]["observation.images.front"].get("info") or {}
+    return {"episodes": info["total_episodes"], "frames": info["total_frames"],
+            "vcodec": front.get("video.codec")}  # fmt: skip
 
 
 def pretrain(args: argparse.Namespace, root: Path, out: Path) -> dict:
@@ -288,7 +294,8 @@ def main() -> None:
     d = figures["dataset"]
     print(f"| stage (training seed {args.seed}, inputs {args.inputs}) | wall time | figure |")
     print("| --- | --- | --- |")
-    print(f"| dataset | {wall(d)} | {d['episodes']} episodes, {d['frames']} frames |")
+    made = f"{d['episodes']} episodes, {d['frames']} frames, {d.get('vcodec')} videos"
+    print(f"| dataset | {wall(d)} | {made} |")
     if "pretraining" in figures:
         r = figures["pretraining"]
         print(f"| backbone pretraining, {args.pretrain_steps} steps | {wall(r)} | held-out error: "
