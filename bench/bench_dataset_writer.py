@@ -5,7 +5,8 @@
 
 Simulates two episodes of ``pick_cube`` once (front and wrist cameras at ``--size``,
 WIDTHxHEIGHT), then writes them ``--episodes`` times over into a new dataset through
-``LeRobotDataset`` as ``so101sim dataset`` does (streaming AV1 encoder, one encoder thread),
+``LeRobotDataset`` as ``so101sim dataset`` does (streaming encoder, one encoder thread; AV1,
+LeRobot's default codec, as ``so101sim dataset --vcodec libsvtav1`` writes),
 alternately without and with ``fast_writer`` and ``size_video_files``, ``--rounds`` times each.
 Prints, per round, the CPU milliseconds per frame of this process (all its threads: the
 encoder's too) and the wall milliseconds per frame, then the median ratio. The datasets'

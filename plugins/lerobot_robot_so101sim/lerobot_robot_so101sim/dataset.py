@@ -72,6 +72,7 @@ MAX_EPISODES = 100_000
 MAX_WORKERS = 256
 MAX_IMAGE_SIDE = 1024
 ENCODER_THREADS = 1
+"""Threads of the video encoder (streaming: it runs beside the workers on the same cores)."""
 VIDEO_CODECS: dict[str, dict[str, Any]] = {
     "h264": {"vcodec": "h264", "preset": "ultrafast", "crf": 20},
     "libsvtav1": {"vcodec": "libsvtav1"},
@@ -82,8 +83,9 @@ VIDEO_CODECS: dict[str, dict[str, Any]] = {
 default): x264's fastest preset at a quality (``crf`` 20) that keeps the rendered frames at
 least as close to the raw images as AV1 at LeRobot's settings does, for about a third of the
 encoding CPU. ``libsvtav1`` (or ``av1``): what ``lerobot-record`` writes by default (SVT-AV1,
-preset 12, ``crf`` 30). LeRobot trains on either (docs/learning.md: measured)."""
-"""Threads of the video encoder (streaming: it runs beside the workers on the same cores)."""
+preset 12, ``crf`` 30). LeRobot trains on either (docs/learning.md: measured), but merges
+only datasets of one codec, and ``lerobot-record --resume`` appends in its own settings: give
+the codec of the dataset you will combine this one with."""
 MOTOR_NAMES = [f"{j}.pos" for j in JOINT_NAMES]
 OBJECT_FIELDS = ("x", "y", "z", "qw", "qx", "qy", "qz")
 
@@ -240,8 +242,9 @@ def _randomize_options(preset: str) -> dict[str, Any]:
 def quiet_encoder_logs() -> None:
     """Warnings and errors only from the video encoders, for a command that shows its own
     progress: SVT-AV1 prints about 15 lines of its settings for every video it starts (two a
-    camera and episode) unless ``SVT_LOG`` says otherwise (left as the user set it), and
-    ffmpeg's muxer a line for each video file it finalises. Process-wide: for a command's
+    camera and episode) unless ``SVT_LOG`` says otherwise (left as the user set it), libx264
+    a dozen lines of statistics for each video it ends, and ffmpeg's muxer a line for each
+    video file it finalises. Process-wide: for a command's
     ``main``, not for a library."""
     os.environ.setdefault("SVT_LOG", "1")
     import av.logging
