@@ -81,9 +81,10 @@ VIDEO_CODECS: dict[str, dict[str, Any]] = {
 """The video codecs (``vcodec``) and the encoder settings each is given, through LeRobot's
 ``RGBEncoderConfig`` (``--dataset.rgb_encoder.*`` of ``lerobot-record``). ``h264`` (the
 default): x264's fastest preset at a quality (``crf`` 20) that keeps the rendered frames at
-least as close to the raw images as AV1 at LeRobot's settings does, for about a third of the
-encoding CPU. ``libsvtav1`` (or ``av1``): what ``lerobot-record`` writes by default (SVT-AV1,
-preset 12, ``crf`` 30). LeRobot trains on either (docs/learning.md: measured), but merges
+least as close to the raw images as AV1 at LeRobot's settings does, for about a quarter less
+CPU over the whole dataset (342 CPU-s against 459 for 200 episodes, docs/learning.md).
+``libsvtav1`` (or ``av1``): what ``lerobot-record`` writes by default (SVT-AV1, preset 12,
+``crf`` 30). LeRobot trains on either (docs/learning.md: measured), but merges
 only datasets of one codec, and ``lerobot-record --resume`` appends in its own settings: give
 the codec of the dataset you will combine this one with."""
 MOTOR_NAMES = [f"{j}.pos" for j in JOINT_NAMES]
