@@ -359,11 +359,14 @@ def generate_dataset(
             dataset.finalize()
             from so101sim.model import servo_model  # imported here: it imports MuJoCo
 
+            recorded = asdict(settings)
+            if not settings.video:
+                recorded["vcodec"] = None  # PNG frames: no codec was used, whatever was given
             meta = {
                 "generator": "so101sim dataset",
                 "task": settings.task,
                 "servo_model": servo_model(),  # the environments' default arm profile
-                "settings": jsonable(asdict(settings)),
+                "settings": jsonable(recorded),
                 # the cameras as rendered (at --image-size and --fps): the rig to give eval or
                 # a real follower
                 "cameras": jsonable(

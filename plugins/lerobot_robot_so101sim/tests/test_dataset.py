@@ -357,6 +357,30 @@ def test_the_videos_codec_is_the_one_asked_for_and_keeps_the_rendered_frames(
         assert psnr > 27, (t, psnr)  # measured: 30-31 dB for both codecs at 160x120
 
 
+def test_without_videos_the_frames_are_stored_exactly_and_no_codec_is_recorded(tmp_path):
+    """``--no-video``: the images as PNG frames in the data files, decoded to the very pixels
+    the episode rendered; the codec given (or the default) is not used, so none is recorded."""
+    from lerobot_robot_so101sim.episodes import simulate_episode
+
+    root = tmp_path / "ds"
+    settings = DatasetSettings(
+        root=str(root), task="pick_cube", episodes=1, seed=5, cameras=("front",),
+        image_size=(48, 64), video=False, vcodec="libsvtav1",
+    )  # fmt: skip
+    report = generate_dataset(settings)
+    info = json.loads((root / "meta" / "info.json").read_text())
+    assert info["features"]["observation.images.front"]["dtype"] == "image"
+    assert not (root / "videos").exists()
+    meta = json.loads((root / "meta" / "so101sim.json").read_text())
+    assert meta["settings"]["video"] is False and meta["settings"]["vcodec"] is None
+    ds = LeRobotDataset(REPO_ID, root=root)
+    raw = simulate_episode(settings, report.seeds[0]).images["front"]
+    assert len(ds) == len(raw) == report.frames
+    for t in (0, len(raw) - 1):
+        decoded = np.rint(ds[t]["observation.images.front"].numpy().transpose(1, 2, 0) * 255)
+        np.testing.assert_array_equal(decoded.astype(np.uint8), raw[t])
+
+
 def test_an_unknown_video_codec_is_refused():
     with pytest.raises(SettingError, match=r"vcodec.*h264"):
         DatasetSettings(root="x", task="pick_cube", episodes=1, vcodec="vp9").checked()
