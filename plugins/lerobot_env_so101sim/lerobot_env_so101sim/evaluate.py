@@ -384,7 +384,7 @@ def evaluate_policy(
         if o.video is not None:
             if kept >= settings.max_videos:
                 Path(o.video).unlink(missing_ok=True)
-                o = EpisodeOutcome(o.seed, o.success, o.steps, o.success_time_s, None)
+                o = replace(o, video=None)  # its draws and the rest kept
             else:
                 kept += 1
         final.append(o)

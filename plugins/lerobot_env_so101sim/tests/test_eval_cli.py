@@ -80,3 +80,27 @@ def test_so101sim_eval_refuses_bad_settings_in_one_line_before_any_work(tmp_path
         err = capsys.readouterr().err
         assert word in err and len(err.strip().splitlines()) == 1 and "episode" not in err
     assert not (tmp_path / "new").exists() and (out / "eval.json").read_text() == "{}"
+
+
+def test_so101sim_eval_keeps_every_episodes_draws_past_the_last_failure_video(tmp_path):
+    """``--randomize``: every episode's draws are in eval.json, also those of failures whose
+    video ``--max-videos`` leaves out (an untrained policy fails all three)."""
+    from so101sim.cli.main import main
+
+    size = {"observation_height": 48, "observation_width": 64, "cameras": ["front"]}
+    build(SO101SimPickCubeEnv(**size), tmp_path / "policy")
+    out = tmp_path / "eval"
+    argv = [
+        "eval", str(tmp_path / "policy"), "--episodes", "3", "--episode-length", "6",
+        "--randomize", "light", "--max-videos", "1", "--workers", "1", "-o", str(out),
+    ]  # fmt: skip
+    assert main(argv) == 0
+    report = json.loads((out / "eval.json").read_text())
+    episodes = report["per_episode"]
+    assert [e["success"] for e in episodes] == [False] * 3
+    assert [bool(e["video"]) for e in episodes] == [True, False, False]
+    assert len(list((out / "videos").iterdir())) == 1
+    draws = [e["randomization"] for e in episodes]
+    assert all(d and "objects" in d and "lighting" in d for d in draws), draws
+    sizes = {d["objects"]["size"]["cube"] for d in draws}
+    assert len(sizes) == 3  # each episode its own draw
