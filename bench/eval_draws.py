@@ -1,0 +1,160 @@
+"""Which randomisation draws an evaluation's failures share: every scalar draw of
+``so101sim eval --randomize ...``'s episodes (``eval.json``'s ``per_episode[].randomization``:
+the cameras' moves and field of view, the lights, the colours, the cube's size, mass and
+friction, the servos) ranked by its correlation with failure, and the success split at
+the draw's median.
+
+    # in the LeRobot venv; one or more evaluations of the same seeds (several training runs)
+    python bench/eval_draws.py runs/recipe/train_pre_s5/eval_light/eval.json [more eval.json]
+        [--top 10] [--split cameras.front.fovy_deg]
+
+With several evaluations of the same episodes (the same ``--seed`` and ``--randomize``) an
+episode counts the runs that failed it. An evaluation written before every episode's draws
+were kept (so101sim before 2026-12-08 dropped them for failures past ``--max-videos``) has its
+missing draws drawn again: the environment reset with the evaluation's own settings and seed
+(the draws depend on these only, not on the policy's actions). The p-values are from a
+permutation test and are not corrected for the number of draws compared (about a hundred):
+read a p below 0.0005 as a lead, not a cause; the cause needs an evaluation with that draw
+held fixed (``--randomize light,camera_fovy_deg=0``, for instance).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+PERMUTATIONS = 20_000
+
+
+def flatten(tree: Any, prefix: str = "") -> dict[str, float]:
+    """Every number of a draw, named by its path (``cameras.front.fovy_deg``); lists by
+    index (``lighting.scale.3``), a list of things (``distractors``) by its length."""
+    out: dict[str, float] = {}
+    if isinstance(tree, dict):
+        for key, value in tree.items():
+            out.update(flatten(value, f"{prefix}{key}."))
+    elif isinstance(tree, list) and tree and all(isinstance(v, (int, float)) for v in tree):
+        for i, value in enumerate(tree):
+            out[f"{prefix}{i}"] = float(value)
+    elif isinstance(tree, list) and all(isinstance(v, list) for v in tree) and tree:
+        for i, value in enumerate(tree):
+            out.update(flatten(value, f"{prefix}{i}."))
+    elif isinstance(tree, list):
+        out[f"{prefix}count"] = float(len(tree))
+    elif isinstance(tree, (int, float)) and not isinstance(tree, bool):
+        out[prefix.rstrip(".")] = float(tree)
+    return out
+
+
+def redraw(report: dict[str, Any], seeds: list[int]) -> dict[int, Any]:
+    """The draws of ``seeds`` under ``report``'s settings: its environment, reset."""
+    import lerobot_env_so101sim  # noqa: F401  (registers the env types)
+    from lerobot.envs.configs import EnvConfig
+    from lerobot.envs.factory import make_env
+    from lerobot.policies import make_policy  # noqa: F401  (registers the policy types)
+
+    kind = f"so101sim_{report['task']}"
+    cfg = EnvConfig.get_choice_class(kind)(
+        policy_path=report["policy"],
+        episode_length=report["episode_length"],
+        fps=report["fps"],
+        randomize=report["randomize"],
+        camera_file=report.get("camera_file"),
+    )
+    vec = make_env(cfg, n_envs=1)[kind][0]
+    try:
+        out = {}
+        for seed in seeds:
+            vec.reset(seed=[seed])
+            out[seed] = json.loads(json.dumps(vec.envs[0].unwrapped.randomization, default=float))
+        return out
+    finally:
+        vec.close()
+
+
+def ranks(x: np.ndarray) -> np.ndarray:
+    """Average ranks (ties share theirs)."""
+    order = np.argsort(x, kind="stable")
+    r = np.empty(len(x))
+    r[order] = np.arange(len(x), dtype=float)
+    for value in np.unique(x):
+        tied = x == value
+        r[tied] = r[tied].mean()
+    return r
+
+
+def spearman(x: np.ndarray, y: np.ndarray, shuffles: np.ndarray) -> tuple[float, float]:
+    """Rank correlation and its two-sided p-value over the orders ``shuffles`` (one per row)."""
+    rx, ry = ranks(x), ranks(y)
+    rx, ry = rx - rx.mean(), ry - ry.mean()
+    scale = np.sqrt((rx**2).sum() * (ry**2).sum())
+    if scale == 0:
+        return 0.0, 1.0
+    rho = float(rx @ ry / scale)
+    perm = ry[shuffles] @ rx / scale
+    return rho, float((np.sum(np.abs(perm) >= abs(rho)) + 1) / (len(shuffles) + 1))
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("evals", nargs="+", type=Path, help="eval.json files of the same seeds")
+    p.add_argument("--top", type=int, default=10, help="draws to list (10)")
+    p.add_argument("--split", action="append", default=[], help="a draw to split at 0 and show")
+    args = p.parse_args()
+    if not 1 <= args.top <= 1000:
+        p.error(f"--top {args.top}; expected 1 to 1000")
+    reports = [json.loads(f.read_text()) for f in args.evals]
+    outcomes = [{e["seed"]: e for e in r["per_episode"]} for r in reports]
+    seeds = sorted(set.intersection(*(set(o) for o in outcomes)))
+    if not seeds or reports[0].get("randomize", "none") == "none":
+        p.error("expected evaluations with --randomize that share their seeds")
+    draws = {s: next((o[s]["randomization"] for o in outcomes if o[s]["randomization"]), None)
+             for s in seeds}  # fmt: skip
+    missing = [s for s, d in draws.items() if not d]
+    if missing:
+        print(f"{len(missing)} episodes' draws not in eval.json: drawn again", file=sys.stderr)
+        described = [r for r in reports if "policy" in r and "episode_length" in r]
+        if not described:
+            p.error("the draws are missing and no eval.json names its policy to draw them again")
+        draws.update(redraw(described[-1], missing))
+    failed = np.array([sum(not o[s]["success"] for o in outcomes) for s in seeds], dtype=float)
+    table = [flatten(draws[s]) for s in seeds]
+    names = sorted(set.intersection(*(set(t) for t in table)))
+    rng = np.random.default_rng(0)
+    shuffles = np.argsort(rng.random((PERMUTATIONS, len(seeds))), axis=1)
+    rows = []
+    for name in names:
+        x = np.array([t[name] for t in table])
+        if np.ptp(x) == 0:
+            continue
+        rho, pval = spearman(x, failed, shuffles)
+        rows.append((pval, -abs(rho), name, rho, x))
+    rows.sort(key=lambda r: r[:2])
+    runs = len(reports)
+    print(f"{len(seeds)} episodes x {runs} runs: {int(failed.sum())} failures; "
+          f"{len(rows)} draws compared")  # fmt: skip
+    print("| draw | rank corr. with failure | p (permutation) | successes <= median / above |")
+    print("| --- | ---: | ---: | --- |")
+    for pval, _, name, rho, x in rows[: args.top]:
+        low = x <= np.median(x)
+        ok = runs - failed
+        print(f"| {name} | {rho:+.2f} | {pval:.4f} | {int(ok[low].sum())}/{runs * low.sum()} / "
+              f"{int(ok[~low].sum())}/{runs * (~low).sum()} |")  # fmt: skip
+    for name in args.split:
+        x = np.array([t.get(name, np.nan) for t in table])
+        for label, mask in (("< 0", x < 0), (">= 0", x >= 0)):
+            per_run = [
+                sum(o[s]["success"] for s, m in zip(seeds, mask, strict=True) if m)
+                for o in outcomes
+            ]
+            print(f"{name} {label}: {mask.sum()} episodes, successes per run {per_run}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
