@@ -8,14 +8,17 @@ the draw's median.
     python bench/eval_draws.py runs/recipe/train_pre_s5/eval_light/eval.json [more eval.json]
         [--top 10] [--split cameras.front.fovy_deg]
 
-With several evaluations of the same episodes (the same ``--seed`` and ``--randomize``) an
-episode counts the runs that failed it. An evaluation written before every episode's draws
-were kept (so101sim before 2026-12-08 dropped them for failures past ``--max-videos``) has its
-missing draws drawn again: the environment reset with the evaluation's own settings and seed
-(the draws depend on these only, not on the policy's actions). The p-values are from a
-permutation test and are not corrected for the number of draws compared (about a hundred):
+With several evaluations of the same episodes (the same ``--seed``) an episode counts the runs
+that failed it. Each episode's scene is made again (the environment reset with the first
+evaluation's settings and the episode's seed: the draws and where the cube starts depend on
+these only, not on the policy), so where the objects start (``start.cube.x``, ``.y``,
+``.yaw_mod90``) is compared too, and an evaluation written before every episode's draws were
+kept (so101sim before 2026-12-08 dropped them for failures past ``--max-videos``) is complete;
+the draws eval.json kept are checked against those drawn again. The p-values are from a
+permutation test and are not corrected for the number of things compared (about a hundred):
 read a p below 0.0005 as a lead, not a cause; the cause needs an evaluation with that draw
-held fixed (``--randomize light,camera_fovy_deg=0``, for instance).
+held fixed (``--randomize light,camera_fovy_deg=0``, for instance), given after the first to
+``--split`` the outcomes by the first's draws.
 """
 
 from __future__ import annotations
@@ -51,8 +54,16 @@ def flatten(tree: Any, prefix: str = "") -> dict[str, float]:
     return out
 
 
-def redraw(report: dict[str, Any], seeds: list[int]) -> dict[int, Any]:
-    """The draws of ``seeds`` under ``report``'s settings: its environment, reset."""
+def yaw_deg(quat: np.ndarray) -> float:
+    """The heading of a (w, x, y, z) quaternion about the vertical, degrees."""
+    w, x, y, z = quat
+    return float(np.degrees(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))))
+
+
+def scenes(report: dict[str, Any], policy: str, seeds: list[int]) -> dict[int, dict[str, Any]]:
+    """Each seed's draws and where its objects start (x, y in metres, the yaw modulo 90°),
+    under ``report``'s settings: its environment, reset with the seed (what the draws and
+    the start depend on; the policy's folder gives the cameras and image size)."""
     import lerobot_env_so101sim  # noqa: F401  (registers the env types)
     from lerobot.envs.configs import EnvConfig
     from lerobot.envs.factory import make_env
@@ -60,9 +71,9 @@ def redraw(report: dict[str, Any], seeds: list[int]) -> dict[int, Any]:
 
     kind = f"so101sim_{report['task']}"
     cfg = EnvConfig.get_choice_class(kind)(
-        policy_path=report["policy"],
-        episode_length=report["episode_length"],
-        fps=report["fps"],
+        policy_path=policy,
+        episode_length=report.get("episode_length", 240),
+        fps=report.get("fps", 30),
         randomize=report["randomize"],
         camera_file=report.get("camera_file"),
     )
@@ -71,7 +82,13 @@ def redraw(report: dict[str, Any], seeds: list[int]) -> dict[int, Any]:
         out = {}
         for seed in seeds:
             vec.reset(seed=[seed])
-            out[seed] = json.loads(json.dumps(vec.envs[0].unwrapped.randomization, default=float))
+            env = vec.envs[0].unwrapped
+            start = {}
+            for obj in env.scene.objects:
+                pose = np.asarray(env.object_pose(obj.name), dtype=float)
+                start[obj.name] = {"x": pose[0], "y": pose[1], "yaw_mod90": yaw_deg(pose[3:]) % 90}
+            drawn = json.loads(json.dumps(env.randomization, default=float))
+            out[seed] = {"start": start, **drawn}
         return out
     finally:
         vec.close()
@@ -113,15 +130,20 @@ def main() -> int:
     seeds = sorted(set.intersection(*(set(o) for o in outcomes)))
     if not seeds or reports[0].get("randomize", "none") == "none":
         p.error("expected evaluations with --randomize that share their seeds")
-    draws = {s: next((o[s]["randomization"] for o in outcomes if o[s]["randomization"]), None)
-             for s in seeds}  # fmt: skip
-    missing = [s for s, d in draws.items() if not d]
-    if missing:
-        print(f"{len(missing)} episodes' draws not in eval.json: drawn again", file=sys.stderr)
-        described = [r for r in reports if "policy" in r and "episode_length" in r]
-        if not described:
-            p.error("the draws are missing and no eval.json names its policy to draw them again")
-        draws.update(redraw(described[-1], missing))
+    policy = next((r["policy"] for r in reports if "policy" in r), None)
+    if policy is None:
+        p.error("no eval.json names its policy folder (needed to draw the scenes again)")
+    mixed = {r["randomize"] for r in reports} - {reports[0]["randomize"]}
+    if mixed:
+        print(f"draws of --randomize {reports[0]['randomize']}, the first evaluation's "
+              f"(others: {sorted(mixed)})", file=sys.stderr)  # fmt: skip
+    draws = scenes(reports[0], policy, seeds)
+    for s in seeds:  # the draws eval.json kept, where it kept them, are the ones drawn again
+        kept = outcomes[0][s]["randomization"]
+        if kept and json.dumps(kept, sort_keys=True) != json.dumps(
+            {k: v for k, v in draws[s].items() if k != "start"}, sort_keys=True
+        ):
+            p.error(f"seed {s}: the draws drawn again differ from eval.json's (another version?)")
     failed = np.array([sum(not o[s]["success"] for o in outcomes) for s in seeds], dtype=float)
     table = [flatten(draws[s]) for s in seeds]
     names = sorted(set.intersection(*(set(t) for t in table)))
