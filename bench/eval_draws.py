@@ -8,24 +8,25 @@ the draw's median.
     python bench/eval_draws.py runs/recipe/train_pre_s5/eval_light/eval.json [more eval.json]
         [--top 10] [--split cameras.front.fovy_deg]
 
-With several evaluations of the same episodes (the same ``--seed``) an episode counts the runs
-that failed it. Each episode's scene is made again (the environment reset with the first
-evaluation's settings and the episode's seed: the draws and where the cube starts depend on
-these only, not on the policy), so where the objects start (``start.cube.x``, ``.y``,
-``.yaw_mod90``) is compared too, and an evaluation written before every episode's draws were
-kept (so101sim before 2026-12-08 dropped them for failures past ``--max-videos``) is complete;
-the draws eval.json kept are checked against those drawn again. The p-values are from a
-permutation test and are not corrected for the number of things compared (about a hundred):
-read a p below 0.0005 as a lead, not a cause; the cause needs an evaluation with that draw
-held fixed (``--randomize light,camera_fovy_deg=0``, for instance), given after the first to
-``--split`` the outcomes by the first's draws.
+With several evaluations of the same episodes (the same ``--seed`` and ``--randomize``) an
+episode counts the runs that failed it; an evaluation under other draws (one given after the
+first with a draw held fixed, ``--randomize light,camera_fovy_deg=0`` for instance) is left
+out of the ranking and only shown by ``--split``, its outcomes beside the others' on either
+side of the first evaluation's draw. Each episode's scene is made again (the environment reset
+with the first evaluation's settings and the episode's seed: the draws and where the cube
+starts depend on these only, not on the policy), so where the objects start (``start.cube.x``,
+``.y``, ``.yaw_mod90``) is compared too, and an evaluation written before every episode's draws
+were kept (so101sim before 2026-12-08 dropped them for failures past ``--max-videos``) is
+complete; the draws eval.json kept are checked against those drawn again. Only numbers are
+compared (a texture's name is not). The p-values are from a permutation test and are not
+corrected for the number of things compared (over a hundred): read a p below 0.0005 as a
+lead, not a cause; the cause needs an evaluation with that draw held fixed.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -114,38 +115,47 @@ def spearman(x: np.ndarray, y: np.ndarray, shuffles: np.ndarray) -> tuple[float,
         return 0.0, 1.0
     rho = float(rx @ ry / scale)
     perm = ry[shuffles] @ rx / scale
-    return rho, float((np.sum(np.abs(perm) >= abs(rho)) + 1) / (len(shuffles) + 1))
+    hits = np.sum(np.abs(perm) >= abs(rho) - 1e-12)  # ties that differ in the last bits count
+    return rho, float((hits + 1) / (len(shuffles) + 1))
 
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("evals", nargs="+", type=Path, help="eval.json files of the same seeds")
     p.add_argument("--top", type=int, default=10, help="draws to list (10)")
-    p.add_argument("--split", action="append", default=[], help="a draw to split at 0 and show")
+    p.add_argument(
+        "--split",
+        action="append",
+        default=[],
+        help="NAME or NAME=VALUE: each run's successes on either side of a draw's median "
+        "(or of VALUE), the first evaluation's draws",
+    )
     args = p.parse_args()
     if not 1 <= args.top <= 1000:
         p.error(f"--top {args.top}; expected 1 to 1000")
     reports = [json.loads(f.read_text()) for f in args.evals]
+    first = reports[0].get("randomize", "none")
+    if first == "none":
+        p.error(f"{args.evals[0]} was evaluated without --randomize; expected randomised draws")
     outcomes = [{e["seed"]: e for e in r["per_episode"]} for r in reports]
     seeds = sorted(set.intersection(*(set(o) for o in outcomes)))
-    if not seeds or reports[0].get("randomize", "none") == "none":
-        p.error("expected evaluations with --randomize that share their seeds")
+    if not seeds:
+        p.error("the evaluations share no seed; expected evaluations of the same episodes")
     policy = next((r["policy"] for r in reports if "policy" in r), None)
-    if policy is None:
-        p.error("no eval.json names its policy folder (needed to draw the scenes again)")
-    mixed = {r["randomize"] for r in reports} - {reports[0]["randomize"]}
-    if mixed:
-        print(f"draws of --randomize {reports[0]['randomize']}, the first evaluation's "
-              f"(others: {sorted(mixed)})", file=sys.stderr)  # fmt: skip
+    if policy is None or not Path(policy, "config.json").is_file():
+        p.error(f"policy folder {policy!r} not found; expected an eval.json that names one "
+                "(to draw the scenes again)")  # fmt: skip
+    # ranked: the evaluations under the first one's draws; the others are only --split
+    ranked = [o for o, r in zip(outcomes, reports, strict=True) if r["randomize"] == first]
     draws = scenes(reports[0], policy, seeds)
     for s in seeds:  # the draws eval.json kept, where it kept them, are the ones drawn again
-        kept = outcomes[0][s]["randomization"]
+        kept = outcomes[0][s].get("randomization")
         if kept and json.dumps(kept, sort_keys=True) != json.dumps(
             {k: v for k, v in draws[s].items() if k != "start"}, sort_keys=True
         ):
             p.error(f"seed {s}: the draws drawn again differ from eval.json's (another version?)")
-    failed = np.array([sum(not o[s]["success"] for o in outcomes) for s in seeds], dtype=float)
-    table = [flatten(draws[s]) for s in seeds]
+    failed = np.array([sum(not o[s]["success"] for o in ranked) for s in seeds], dtype=float)
+    table = [flatten(draws[s]) for s in seeds]  # text (a texture's name) is left out
     names = sorted(set.intersection(*(set(t) for t in table)))
     rng = np.random.default_rng(0)
     shuffles = np.argsort(rng.random((PERMUTATIONS, len(seeds))), axis=1)
@@ -157,9 +167,9 @@ def main() -> int:
         rho, pval = spearman(x, failed, shuffles)
         rows.append((pval, -abs(rho), name, rho, x))
     rows.sort(key=lambda r: r[:2])
-    runs = len(reports)
-    print(f"{len(seeds)} episodes x {runs} runs: {int(failed.sum())} failures; "
-          f"{len(rows)} draws compared")  # fmt: skip
+    runs = len(ranked)
+    print(f"{len(seeds)} episodes x {runs} runs under --randomize {first}: "
+          f"{int(failed.sum())} failures; {len(rows)} draws compared")  # fmt: skip
     print("| draw | rank corr. with failure | p (permutation) | successes <= median / above |")
     print("| --- | ---: | ---: | --- |")
     for pval, _, name, rho, x in rows[: args.top]:
@@ -167,14 +177,24 @@ def main() -> int:
         ok = runs - failed
         print(f"| {name} | {rho:+.2f} | {pval:.4f} | {int(ok[low].sum())}/{runs * low.sum()} / "
               f"{int(ok[~low].sum())}/{runs * (~low).sum()} |")  # fmt: skip
-    for name in args.split:
-        x = np.array([t.get(name, np.nan) for t in table])
-        for label, mask in (("< 0", x < 0), (">= 0", x >= 0)):
+    for item in args.split:
+        name, _, value = item.partition("=")
+        if name not in names:
+            p.error(
+                f"--split {name}: no such draw; expected one of the names listed, e.g. {names[0]}"
+            )
+        x = np.array([t[name] for t in table])
+        try:
+            at = float(value) if value else float(np.median(x))
+        except ValueError:
+            p.error(f"--split {item}: {value!r} is not a number; expected NAME or NAME=VALUE")
+        for label, mask in ((f"<= {at:.4g}", x <= at), (f"> {at:.4g}", x > at)):
             per_run = [
                 sum(o[s]["success"] for s, m in zip(seeds, mask, strict=True) if m)
                 for o in outcomes
             ]
-            print(f"{name} {label}: {mask.sum()} episodes, successes per run {per_run}")
+            print(f"{name} {label}: {mask.sum()} episodes, successes per evaluation {per_run} "
+                  f"({', '.join(r['randomize'] for r in reports)})")  # fmt: skip
     return 0
 
 

@@ -360,8 +360,8 @@ def generate_dataset(
             from so101sim.model import servo_model  # imported here: it imports MuJoCo
 
             recorded = asdict(settings)
-            if not settings.video:
-                recorded["vcodec"] = None  # PNG frames: no codec was used, whatever was given
+            if not (settings.video and settings.cameras):
+                recorded["vcodec"] = None  # no video was encoded: no codec, whatever was given
             meta = {
                 "generator": "so101sim dataset",
                 "task": settings.task,

@@ -101,6 +101,7 @@ def test_so101sim_dataset_trains_with_lerobot_train_and_evaluates(tmp_path):
     assert ds.features["observation.environment_state"]["shape"] == (7,)
     meta = json.loads((root / "meta" / "so101sim.json").read_text())
     assert meta["episode_seeds"] == [0, 1, 2] and meta["failed_seeds"] == []
+    assert meta["settings"]["vcodec"] is None  # no camera: no video, no codec
     frame = ds[0]
     np.testing.assert_allclose(frame["observation.state"].numpy(), START, atol=0.5)
     train = tmp_path / "train"
@@ -178,6 +179,7 @@ def test_an_image_dataset_trains_an_image_policy_that_eval_and_policy_check_take
     assert "libx264" not in out and "moov atom" not in out  # no encoder or muxer chatter
     meta = json.loads((root / "meta" / "so101sim.json").read_text())
     assert meta["settings"]["cameras"][0]["pos"] == [0.2, 0.0, 0.8]  # the rig, kept with it
+    assert meta["settings"]["vcodec"] == "h264"  # the default codec, recorded
     assert [(c["name"], c["width"], c["height"], c["fps"]) for c in meta["cameras"]] == [
         ("top", 64, 48, 30),
         ("wrist", 64, 48, 30),
