@@ -55,12 +55,6 @@ def flatten(tree: Any, prefix: str = "") -> dict[str, float]:
     return out
 
 
-def yaw_deg(quat: np.ndarray) -> float:
-    """The heading of a (w, x, y, z) quaternion about the vertical, degrees."""
-    w, x, y, z = quat
-    return float(np.degrees(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))))
-
-
 def scenes(report: dict[str, Any], policy: str, seeds: list[int]) -> dict[int, dict[str, Any]]:
     """Each seed's draws and where its objects start (x, y in metres, the yaw modulo 90°),
     under ``report``'s settings: its environment, reset with the seed (what the draws and
@@ -69,6 +63,8 @@ def scenes(report: dict[str, Any], policy: str, seeds: list[int]) -> dict[int, d
     from lerobot.envs.configs import EnvConfig
     from lerobot.envs.factory import make_env
     from lerobot.policies import make_policy  # noqa: F401  (registers the policy types)
+
+    from so101sim.kinematics import quat_yaw
 
     kind = f"so101sim_{report['task']}"
     cfg = EnvConfig.get_choice_class(kind)(
@@ -87,7 +83,8 @@ def scenes(report: dict[str, Any], policy: str, seeds: list[int]) -> dict[int, d
             start = {}
             for obj in env.scene.objects:
                 pose = np.asarray(env.object_pose(obj.name), dtype=float)
-                start[obj.name] = {"x": pose[0], "y": pose[1], "yaw_mod90": yaw_deg(pose[3:]) % 90}
+                yaw = float(np.degrees(quat_yaw(pose[3:]))) % 90
+                start[obj.name] = {"x": pose[0], "y": pose[1], "yaw_mod90": yaw}
             drawn = json.loads(json.dumps(env.randomization, default=float))
             out[seed] = {"start": start, **drawn}
         return out

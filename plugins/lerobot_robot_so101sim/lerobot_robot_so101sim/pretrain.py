@@ -148,8 +148,9 @@ def tip_frame_positions(states: np.ndarray, points: np.ndarray) -> np.ndarray:
 def _labels(env: np.ndarray, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Front labels (x, y, z, sin 4·yaw, cos 4·yaw) and wrist labels (tip frame x, y, z)."""
     cube = env[:, :3].astype(np.float64)
-    qw, qx, qy, qz = (env[:, k].astype(np.float64) for k in range(3, 7))
-    yaw = np.arctan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy**2 + qz**2))
+    from so101sim.kinematics import quat_yaw
+
+    yaw = quat_yaw(env[:, 3:7])
     front = np.column_stack([cube, np.sin(4 * yaw), np.cos(4 * yaw)])
     return front, tip_frame_positions(states, cube).astype(np.float64)
 

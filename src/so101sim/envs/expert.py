@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import SettingError, UnreachableError
+from ..kinematics import quat_yaw
 from .grasp import GRASP_Z_M, LIFT_Z_M
 from .planning import (
     CLOSED_GRIPPER,
@@ -67,8 +68,7 @@ PHASE_SECONDS = {
 
 def _yaw(quat: np.ndarray) -> float:
     """The turn about the vertical (degrees) of a quaternion (w, x, y, z)."""
-    w, x, y, z = quat
-    return math.degrees(math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+    return math.degrees(float(quat_yaw(quat)))
 
 
 class ScriptedExpert:

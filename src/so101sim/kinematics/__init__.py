@@ -16,7 +16,16 @@ docs/kinematics.md.
 May import: ``so101sim.model``, ``so101sim.units`` and the base modules.
 """
 
-from .core import BASE_SITE, TIP_SITE, Kinematics, TipPose, for_model, tip_pose, tip_positions
+from .core import (
+    BASE_SITE,
+    TIP_SITE,
+    Kinematics,
+    TipPose,
+    for_model,
+    quat_yaw,
+    tip_pose,
+    tip_positions,
+)
 from .geometry import PlanarArm, planar_arm
 from .ik import ORIENTATION_WEIGHT, IKResult, solve_ik
 from .paths import LineDeviation, LinePlan, line_deviation, plan_line
@@ -39,6 +48,7 @@ __all__ = [
     "plan_line",
     "planar_arm",
     "plot_workspace",
+    "quat_yaw",
     "sample_workspace",
     "solve_ik",
     "tip_pose",

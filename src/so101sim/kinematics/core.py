@@ -110,6 +110,13 @@ class Frame:
         )
 
 
+def quat_yaw(quat: np.ndarray) -> np.ndarray:
+    """The turn about the vertical (radians) of quaternions (w, x, y, z) along the last axis."""
+    q = np.asarray(quat, dtype=np.float64)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a × b`` for 3-vectors (``np.cross`` costs ten times more on such small arrays)."""
     return np.array(
